@@ -1,0 +1,375 @@
+"""PileLoading-v0: one scoop of a compact wheel loader into a gravel (or snow) pile.
+
+## Description
+An articulated-frame wheel loader of the Avant 635 class starts 1-5 m from a pile with its
+bucket lowered, drives into the pile, and fills its bucket by raising the boom and curling
+the bucket, as in Yang et al., "Neural Network Controller for Autonomous Pile Loading
+Revised". The machine is a MuJoCo model; the pile is a pluggable soil model.
+
+## Action Space
+``Box(-1, 1, (3,), float32)``: u = <u_theta1, u_theta2, u_g>, normalised delta velocities.
+
+| index | name     | meaning                                              |
+|-------|----------|------------------------------------------------------|
+| 0     | boom     | boom valve: fraction of full flow, + raises          |
+| 1     | bucket   | bucket valve: fraction of full flow, + curls back    |
+| 2     | throttle | HST pump displacement: fraction of full, + forward   |
+
+Finite values outside [-1, 1] are clipped; NaN/inf or a wrong shape raise ``ValueError``.
+
+## Observation Space
+``Dict`` of seven ``Box(low, high, (1,), float32)`` sensors (``sensors.SENSORS``): boom_angle
+[rad], bucket_angle [rad], drive_pressure [MPa], telescope_pressure [MPa], boom_pressure
+[MPa], bucket_pressure [MPa], pump_angle [rad]. Gaussian noise, scaled by ``sensor_noise``.
+
+## Rewards
+The sum of the parts in ``info``: reward_fill, reward_spill, reward_time, reward_energy,
+reward_success (``task.RewardWeights``).
+
+## Episode End
+Terminated when the bucket is curled back and raised (scoop finished; ``success`` if at
+least half full) or when the machine tips. Truncated after ``max_episode_seconds``.
+
+## Arguments
+See ``PileLoadingEnv.__init__``.
+
+## Version History
+- v0: first release.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from .conditions import Condition, get_condition
+from .machine import Machine, MachineParameters, load_machine_spec
+from .sensors import SENSORS
+from .soil import BucketGeometry, PileGeometry, get_soil_model
+from .task import RewardWeights, ScoopTask, reward_parts
+
+INITIAL_BOOM_ANGLE_RAD = -0.45  # bucket lowered: floor a few cm above the ground
+SETTLE_SECONDS = 0.2  # simulated time to settle on the tyres after reset [s]
+LATERAL_OFFSET_RANGE_M = (-0.3, 0.3)  # where along the pile face the bucket aims [m]
+
+
+class PileLoadingEnv(gym.Env):
+    """Gymnasium environment of one wheel-loader scoop (see module docstring).
+
+    Args:
+        condition: preset name, ``summer`` or ``winter_a`` .. ``winter_d``.
+        soil: soil model name, ``heightfield`` (fast, default) or ``particles``.
+        control_hz: control rate [Hz] (20 default; the real machine ran at 3).
+        physics_hz: physics rate [Hz], at least 500.
+        soil_hz: soil-model update rate [Hz]; rounded to a whole number per control step.
+        sensor_noise: multiplier of every sensor's default noise std (0 = noiseless).
+        start_distance_range_m: cutting edge to pile toe at reset, drawn uniformly [m].
+        approach_angle_range_deg: heading relative to the pile normal, drawn uniformly [deg].
+        condition_overrides: replace preset fields, e.g. ``{"material": {"cohesion_pa": 0}}``.
+        machine: hydraulic parameters; pile: pile shape; bucket: bucket shape.
+        task: episode rules; reward_weights: reward part weights.
+        render_mode: ``None`` or ``"rgb_array"``; render_size: (height, width) [px].
+        camera: MJCF camera name for rendering (``side`` or ``overview``).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+
+    def __init__(
+        self,
+        condition: str | Condition = "summer",
+        *,
+        soil: str = "heightfield",
+        control_hz: float = 20.0,
+        physics_hz: float = 500.0,
+        soil_hz: float = 60.0,
+        sensor_noise: float = 1.0,
+        start_distance_range_m: Sequence[float] = (1.0, 5.0),
+        approach_angle_range_deg: Sequence[float] = (-10.0, 10.0),
+        condition_overrides: dict[str, dict[str, float]] | None = None,
+        machine: MachineParameters | None = None,
+        pile: PileGeometry | None = None,
+        bucket: BucketGeometry | None = None,
+        task: ScoopTask | None = None,
+        reward_weights: RewardWeights | None = None,
+        render_mode: str | None = None,
+        render_size: tuple[int, int] = (480, 640),
+        camera: str = "side",
+    ) -> None:
+        super().__init__()
+        base = condition if isinstance(condition, Condition) else get_condition(condition)
+        self.condition = base.with_overrides(condition_overrides)
+        _check_rates(control_hz, physics_hz, soil_hz)
+        _check_range("start_distance_range_m", start_distance_range_m, 0.5, 20.0)
+        _check_range("approach_angle_range_deg", approach_angle_range_deg, -45.0, 45.0)
+        if not (math.isfinite(sensor_noise) and sensor_noise >= 0):
+            raise ValueError(f"sensor_noise: must be finite and >= 0, got {sensor_noise}")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode: must be None or 'rgb_array', got {render_mode!r}")
+
+        self.start_distance_range_m = tuple(float(v) for v in start_distance_range_m)
+        self.approach_angle_range_rad = tuple(math.radians(v) for v in approach_angle_range_deg)
+        self.sensor_noise = float(sensor_noise)
+        self.task = task or ScoopTask()
+        self.reward_weights = reward_weights or RewardWeights()
+        self.render_mode, self.render_size, self.camera = render_mode, render_size, camera
+
+        # ---- model: machine + soil
+        soil_cls = get_soil_model(soil)
+        self.soil = soil_cls(
+            self.condition.material, pile or PileGeometry(), bucket or BucketGeometry()
+        )
+        spec = load_machine_spec()
+        spec.option.timestep = 1.0 / physics_hz
+        spec.body("payload").pos = [
+            *self.soil.bucket.centroid_xz()[:1],
+            0.0,
+            self.soil.bucket.centroid_xz()[1],
+        ]
+        self.soil.add_to_spec(spec)
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self.machine = Machine(
+            self.model,
+            self.data,
+            machine or MachineParameters(),
+            speed_scale=self.condition.hydraulics.speed_scale,
+        )
+        self.model.geom_friction[self.model.geom("ground").id, 0] = (
+            self.condition.ground.tyre_friction
+        )
+        self.machine_mass_kg = float(self.model.body_subtreemass[self.model.body("rear_frame").id])
+        self.machine.set_rolling_resistance(
+            self.condition.ground.rolling_resistance, machine_mass_kg=self.machine_mass_kg
+        )
+        self.soil.bind(self.model, self.data, self.machine)
+
+        # ---- timing: control period = frame_skip physics steps, split into soil chunks
+        self.frame_skip = max(1, round(physics_hz / control_hz))
+        self.dt = self.frame_skip * self.model.opt.timestep  # control period [s]
+        n_chunks = max(1, min(self.frame_skip, round(self.dt * soil_hz)))
+        self._chunks = np.diff(np.linspace(0, self.frame_skip, n_chunks + 1).round().astype(int))
+        self.metadata = {**self.metadata, "render_fps": 1.0 / self.dt}
+
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        self.observation_space = spaces.Dict(
+            {s.name: spaces.Box(s.low, s.high, shape=(1,), dtype=np.float32) for s in SENSORS}
+        )
+        self._noise_std = np.array([s.noise_std for s in SENSORS]) * self.sensor_noise
+        self._low = np.array([s.low for s in SENSORS])
+        self._high = np.array([s.high for s in SENSORS])
+        self._renderer: mujoco.Renderer | None = None
+        self._valves = np.zeros(2)
+        self._pump_fraction = 0.0
+        self._elapsed_s = 0.0
+
+    # ------------------------------------------------------------------ gym API
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        rng = self.np_random
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        distance = rng.uniform(*self.start_distance_range_m)
+        angle = rng.uniform(*self.approach_angle_range_rad)
+        aim_y = rng.uniform(*LATERAL_OFFSET_RANGE_M)
+        self._set_start_pose(distance, angle, aim_y)
+        self.soil.reset(rng)
+        self._valves[:] = 0.0
+        self._pump_fraction = 0.0
+        self._elapsed_s = 0.0
+        self._energy_j = 0.0
+        self._run_physics(round(SETTLE_SECONDS / m.opt.timestep))
+        self._energy_j = 0.0
+        self._last_fill = self.soil.fill_fraction
+        self._last_spilled = self.soil.spilled_kg
+        self._start = {
+            "start_distance_m": distance,
+            "approach_angle_rad": angle,
+            "aim_offset_m": aim_y,
+        }
+        return self._observation(), self._info(scoop_finished=False, tipped=False, parts=None)
+
+    def step(self, action):
+        u = _validate_action(action)
+        energy_before = self._energy_j
+        self._run_physics(self.frame_skip, command=u)
+        self._elapsed_s += self.dt
+
+        fill = self.soil.fill_fraction
+        rated_kg = self.soil.bucket.rated_volume_m3 * self.condition.material.density_kg_m3
+        scoop_finished = (
+            self.machine.bucket_pitch() >= self.task.curled_pitch_rad
+            and self._hinge_height() >= self.task.raised_hinge_height_m
+        )
+        tipped = self.machine.frame_tilt() > self.task.max_frame_tilt_rad
+        succeeded = scoop_finished and fill >= self.task.success_fill_fraction
+        parts = reward_parts(
+            self.reward_weights,
+            fill_gain=fill - self._last_fill,
+            spilled_fraction_gain=(self.soil.spilled_kg - self._last_spilled) / rated_kg,
+            seconds=self.dt,
+            work_kj=(self._energy_j - energy_before) / 1e3,
+            succeeded=succeeded,
+        )
+        self._last_fill, self._last_spilled = fill, self.soil.spilled_kg
+        terminated = scoop_finished or tipped
+        truncated = (not terminated) and self._elapsed_s >= self.task.max_episode_seconds - 1e-9
+        info = self._info(scoop_finished=scoop_finished, tipped=tipped, parts=parts)
+        return self._observation(), float(sum(parts.values())), terminated, truncated, info
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            height, width = self.render_size
+            self._renderer = mujoco.Renderer(self.model, height=height, width=width)
+        self.soil.prepare_render(self._renderer)
+        self._renderer.update_scene(self.data, camera=self.camera)
+        return self._renderer.render()
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # ------------------------------------------------------------------ internals
+    def _set_start_pose(self, distance_m: float, angle_rad: float, aim_y_m: float) -> None:
+        m, d = self.model, self.data
+        boom = INITIAL_BOOM_ANGLE_RAD
+        for joint, value in (
+            ("boom", boom),
+            ("bucket", -boom),
+            ("telescope", self.machine.params.telescope_extension_m),
+        ):
+            d.qpos[m.joint(joint).qposadr[0]] = value
+        d.act[m.actuator_actadr[self.machine.boom_actuator]] = boom
+        d.act[m.actuator_actadr[self.machine.bucket_actuator]] = -boom
+        mujoco.mj_kinematics(m, d)
+        root = d.xpos[m.body("rear_frame").id]
+        edge_ahead = d.site_xpos[self.machine.cutting_edge_site][0] - root[0]
+        heading = np.array([math.cos(angle_rad), math.sin(angle_rad)])
+        origin = np.array([self.soil.pile.toe_x_m, aim_y_m]) - (distance_m + edge_ahead) * heading
+        d.qpos[0:2] = origin
+        d.qpos[3:7] = [math.cos(angle_rad / 2), 0.0, 0.0, math.sin(angle_rad / 2)]
+        mujoco.mj_forward(m, d)
+
+    def _run_physics(self, n_steps: int, *, command: np.ndarray | None = None) -> None:
+        """Advance ``n_steps`` physics steps in soil-update chunks, with valve/pump lag.
+
+        Without ``command`` the valves and pump keep their state (used to settle at reset).
+        """
+        m, d, machine = self.model, self.data, self.machine
+        hydraulics = self.condition.hydraulics
+        chunks = self._chunks if n_steps == self.frame_skip else _split(n_steps, self._chunks)
+        for steps in chunks:
+            chunk_dt = steps * m.opt.timestep
+            if command is not None:
+                valve_blend = 1.0 - math.exp(-chunk_dt / hydraulics.valve_lag_s)
+                pump_blend = 1.0 - math.exp(-chunk_dt / hydraulics.pump_lag_s)
+                self._valves += valve_blend * (command[:2] - self._valves)
+                self._pump_fraction += pump_blend * (command[2] - self._pump_fraction)
+            machine.command(self._valves[0], self._valves[1], self._pump_fraction)
+            mujoco.mj_step(m, d, nstep=int(steps))
+            self.soil.update(chunk_dt)
+            machine.limit_cylinder_windup()
+            self._energy_j += machine.hydraulic_power_w() * chunk_dt
+        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+            raise RuntimeError(
+                f"simulation diverged (non-finite state) at t={self._elapsed_s:.3f} s; "
+                "check the condition overrides and machine parameters"
+            )
+
+    def _hinge_height(self) -> float:
+        return float(self.data.xpos[self.machine.bucket_body][2])
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        mc = self.machine
+        values = np.array(
+            [
+                mc.boom_angle(),
+                mc.bucket_angle(),
+                mc.drive_pressure_mpa(),
+                mc.telescope_pressure_mpa(),
+                mc.boom_pressure_mpa(),
+                mc.bucket_pressure_mpa(),
+                mc.pump_angle(self._pump_fraction),
+            ]
+        )
+        if self.sensor_noise > 0:
+            values = values + self.np_random.normal(0.0, self._noise_std)
+        values = np.clip(values, self._low, self._high).astype(np.float32)
+        return {s.name: values[i : i + 1] for i, s in enumerate(SENSORS)}
+
+    def _info(self, *, scoop_finished: bool, tipped: bool, parts: dict[str, float] | None) -> dict:
+        soil, mc = self.soil, self.machine
+        fill = soil.fill_fraction
+        info = {
+            "fill_fraction": fill,
+            "success": bool(scoop_finished and fill >= self.task.success_fill_fraction),
+            "scoop_finished": scoop_finished,
+            "tipped": tipped,
+            "bucket_load_kg": soil.bucket_load_kg,
+            "spilled_kg": soil.spilled_kg,
+            "pile_mass_kg": soil.pile_mass_kg,
+            "cutting_depth_m": soil.cutting_depth_m(),
+            "wheel_slip_m_s": mc.wheel_slip_speed(),
+            "forward_speed_m_s": mc.forward_speed(),
+            "bucket_pitch_rad": mc.bucket_pitch(),
+            "bucket_hinge_height_m": self._hinge_height(),
+            "hydraulic_energy_kj": self._energy_j / 1e3,
+            "elapsed_s": self._elapsed_s,
+            **self._start,
+        }
+        info.update(
+            parts
+            or dict.fromkeys(
+                ("reward_fill", "reward_spill", "reward_time", "reward_energy", "reward_success"),
+                0.0,
+            )
+        )
+        return info
+
+
+def _validate_action(action) -> np.ndarray:
+    u = np.asarray(action, dtype=np.float64)
+    if u.shape != (3,):
+        raise ValueError(
+            f"PileLoadingEnv.step: action must have shape (3,) = [boom, bucket, throttle], "
+            f"got shape {u.shape}"
+        )
+    if not np.isfinite(u).all():
+        bad = [
+            name
+            for name, v in zip(("boom", "bucket", "throttle"), u, strict=True)
+            if not math.isfinite(v)
+        ]
+        raise ValueError(f"PileLoadingEnv.step: action has non-finite values in {bad}: {u}")
+    return np.clip(u, -1.0, 1.0)
+
+
+def _split(n_steps: int, like: np.ndarray) -> list[int]:
+    """Split ``n_steps`` into chunks no longer than the control-step chunks."""
+    size = int(like.max())
+    return [size] * (n_steps // size) + ([n_steps % size] if n_steps % size else [])
+
+
+def _check_rates(control_hz: float, physics_hz: float, soil_hz: float) -> None:
+    if not (math.isfinite(physics_hz) and physics_hz >= 500.0):
+        raise ValueError(f"physics_hz: must be >= 500 Hz, got {physics_hz}")
+    if not (math.isfinite(control_hz) and 0.5 <= control_hz <= physics_hz):
+        raise ValueError(
+            f"control_hz: must lie in [0.5, physics_hz={physics_hz}], got {control_hz}"
+        )
+    if not (math.isfinite(soil_hz) and soil_hz > 0):
+        raise ValueError(f"soil_hz: must be finite and > 0, got {soil_hz}")
+
+
+def _check_range(name: str, value: Sequence[float], low: float, high: float) -> None:
+    if len(value) != 2 or not all(math.isfinite(v) for v in value):
+        raise ValueError(f"{name}: must be two finite numbers (low, high), got {value!r}")
+    if not (low <= value[0] <= value[1] <= high):
+        raise ValueError(f"{name}: must satisfy {low} <= low <= high <= {high}, got {value!r}")

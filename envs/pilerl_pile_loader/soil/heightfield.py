@@ -1,0 +1,294 @@
+"""Fast soil: a heightfield pile carved by the bucket, resisted by the earthmoving equation.
+
+Per update (a few per control step):
+
+1. **Intake.** Every pile column whose (x, y) lies under the bucket's inside gives the
+   bucket the material between the bucket floor and min(surface, bucket roof); material
+   above collapses onto it. Intake stops at what the bucket can hold at its current pitch
+   (``BucketGeometry.holding_volume_m3``); the rest stays in the pile.
+2. **Spill.** Load above the holding volume slides out with time constant
+   ``SPILL_TIME_CONSTANT_S`` and is tallied as spilled.
+3. **Resistance.** The cutting-edge depth below the pile surface ahead of it sets the FEE
+   force (``earthmoving.py``), scaled by ``BUCKET_RESISTANCE_FACTOR`` because a bucket
+   also drags its side plates and floor through the material (a calibration constant,
+   see docs/machine_model.md). MuJoCo applies it through three actuators on the
+   cutting-edge site: ``soil_push`` resists forward motion along the heading (one-sided),
+   ``soil_side`` resists sideways motion of the buried bucket, and ``soil_lift`` resists
+   vertical motion (breakout upward, bearing downward). Each is a
+   damper ``F = -c v`` clamped to the FEE force, so MuJoCo's implicit integrator handles
+   the stiffness while the soil stays perfectly plastic once the force cap is reached.
+4. **Payload.** The load's mass is written into the ``payload`` body, so booms, cylinders
+   and tyres feel it.
+
+Mass is conserved exactly: what leaves a column enters the bucket, what leaves the bucket
+is counted as spilled.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+
+from .base import SoilModel
+from .earthmoving import cutting_force_n, fee_factors
+
+if TYPE_CHECKING:
+    from ..machine import Machine
+
+RAKE_ANGLE_DEG = 65.0  # effective rake of a loader bucket's back plate (McKyes' beta) [deg]
+BUCKET_RESISTANCE_FACTOR = 2.0  # bucket vs flat blade: side plates and floor friction
+YIELD_SPEED_M_S = 0.002  # blade speed at which the full FEE force develops [m/s]
+BREAKOUT_RATIO = 0.25  # upward (breakout) resistance / horizontal cutting force
+SIDE_RATIO = 1.0  # sideways resistance of a buried bucket / horizontal cutting force
+BEARING_RATIO = 3.0  # downward (bearing) resistance / horizontal cutting force
+MIN_BEARING_N = 5000.0  # bearing force of the pile once the edge is below its surface [N]
+SPILL_TIME_CONSTANT_S = 0.15  # how fast an over-full bucket sheds its excess [s]
+MAX_PILE_HEIGHT_M = 2.0  # heightfield elevation range [m]
+EDGE_SAMPLES = 7  # points along the cutting edge where the depth is sampled
+PILE_RGBA = (0.55, 0.47, 0.36, 1.0)
+
+
+class HeightfieldSoil(SoilModel):
+    """The default, fast soil model (see module docstring)."""
+
+    name = "heightfield"
+
+    # ------------------------------------------------------------------ build
+    def add_to_spec(self, spec: mujoco.MjSpec) -> None:
+        pile = self.pile
+        self._x0 = pile.toe_x_m - 0.3
+        self._y0 = -(pile.half_width_m + pile.height_m / math.tan(self.repose_angle_rad) + 0.2)
+        length_x, length_y = pile.length_m + 0.3, -2 * self._y0
+        self.ncol = int(round(length_x / pile.cell_size_m)) + 1
+        self.nrow = int(round(length_y / pile.cell_size_m)) + 1
+        self.dx = length_x / (self.ncol - 1)
+        self.dy = length_y / (self.nrow - 1)
+        spec.add_hfield(
+            name="pile",
+            nrow=self.nrow,
+            ncol=self.ncol,
+            size=[length_x / 2, length_y / 2, MAX_PILE_HEIGHT_M, 0.01],
+            userdata=[0.0] * (self.nrow * self.ncol),  # heights are written at reset
+        )
+        spec.worldbody.add_geom(
+            name="pile",
+            type=mujoco.mjtGeom.mjGEOM_HFIELD,
+            hfieldname="pile",
+            pos=[self._x0 + length_x / 2, self._y0 + length_y / 2, 0.0],
+            contype=0,
+            conaffinity=0,
+            rgba=list(PILE_RGBA),
+        )
+        for name in ("soil_push", "soil_side", "soil_lift"):
+            actuator = spec.add_actuator(name=name, target="cutting_edge")
+            actuator.trntype = mujoco.mjtTrn.mjTRN_SITE
+            actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+            actuator.gainprm[0] = 0.0
+            actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+            actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            actuator.forcerange = [-1.0, 1.0]  # rewritten every update
+            actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            actuator.ctrlrange = [-1.0, 1.0]  # unused: gain 0
+
+    def bind(self, model: mujoco.MjModel, data: mujoco.MjData, machine: Machine) -> None:
+        self.model, self.data, self.machine = model, data, machine
+        self._hfield = model.hfield("pile").id
+        self._adr = int(model.hfield_adr[self._hfield])
+        self._push = model.actuator("soil_push").id
+        self._side = model.actuator("soil_side").id
+        self._lift = model.actuator("soil_lift").id
+        self._payload = model.body("payload").id
+        xs = self._x0 + self.dx * np.arange(self.ncol)
+        ys = self._y0 + self.dy * np.arange(self.nrow)
+        self._grid_x, self._grid_y = np.meshgrid(xs, ys)  # (nrow, ncol)
+        self.cell_area_m2 = self.dx * self.dy
+        self._factors = fee_factors(
+            rake_angle_rad=math.radians(RAKE_ANGLE_DEG),
+            friction_angle_rad=self.repose_angle_rad,
+            tool_friction_angle_rad=math.radians(self.material.tool_friction_angle_deg),
+        )
+        self._polygon = self.bucket.polygon
+        self._edge_offsets = np.linspace(-0.45, 0.45, EDGE_SAMPLES) * self.bucket.width_m
+        self.heights = np.zeros((self.nrow, self.ncol))
+
+    def reset(self, rng: np.random.Generator) -> None:
+        heights = self.pile.surface_height(self._grid_x, self._grid_y, self.repose_angle_rad)
+        if self.pile.roughness_m > 0:
+            heights = heights + self._undulation(rng) * (heights > 0)
+        self.heights = np.clip(heights, 0.0, MAX_PILE_HEIGHT_M)
+        self.bucket_load_kg = 0.0
+        self.spilled_kg = 0.0
+        self._depth_m = 0.0
+        self.initial_mass_kg = self.pile_mass_kg
+        self._write_payload()
+        self._write_resistance(0.0, np.array([1.0, 0.0]))
+        self._sync_hfield()
+
+    def _undulation(self, rng: np.random.Generator) -> np.ndarray:
+        """Smooth random bumps of amplitude ``roughness_m`` (three random plane waves)."""
+        bumps = np.zeros_like(self._grid_x)
+        for _ in range(3):
+            wavelength = rng.uniform(0.4, 1.5)
+            angle, phase = rng.uniform(0, 2 * np.pi, size=2)
+            k = 2 * np.pi / wavelength
+            bumps += np.sin(
+                k * (np.cos(angle) * self._grid_x + np.sin(angle) * self._grid_y) + phase
+            )
+        return self.pile.roughness_m * bumps / 3
+
+    # ------------------------------------------------------------------ tallies
+    @property
+    def pile_mass_kg(self) -> float:
+        return float(self.heights.sum() * self.cell_area_m2 * self.material.density_kg_m3)
+
+    def cutting_depth_m(self) -> float:
+        return self._depth_m
+
+    # ------------------------------------------------------------------ update
+    def update(self, dt: float) -> None:
+        d, machine = self.data, self.machine
+        heading = machine.heading()
+        rotation = d.xmat[machine.bucket_body].reshape(3, 3)
+        hinge = d.xpos[machine.bucket_body]
+        # bucket inside polygon in the vertical plane through the hinge: (s along heading, z)
+        local = np.zeros((len(self._polygon), 3))
+        local[:, 0], local[:, 2] = self._polygon[:, 0], self._polygon[:, 1]
+        world = hinge + local @ rotation.T
+        s_poly = (world[:, :2] - hinge[:2]) @ heading
+        z_poly = world[:, 2]
+
+        density = self.material.density_kg_m3
+        pitch = machine.bucket_pitch()
+        hold_m3 = self.bucket.holding_volume_m3(pitch, self.repose_angle_rad)
+        self._intake(hinge, heading, s_poly, z_poly, hold_m3)
+
+        load_m3 = self.bucket_load_kg / density
+        if load_m3 > hold_m3:
+            spill_m3 = (load_m3 - hold_m3) * (1.0 - math.exp(-dt / SPILL_TIME_CONSTANT_S))
+            self.bucket_load_kg -= spill_m3 * density
+            self.spilled_kg += spill_m3 * density
+
+        edge = world[1]
+        self._depth_m = self._edge_depth(edge, heading)
+        force = BUCKET_RESISTANCE_FACTOR * cutting_force_n(
+            self._factors,
+            depth_m=self._depth_m,
+            width_m=self.bucket.width_m,
+            density_kg_m3=density,
+            cohesion_pa=self.material.cohesion_pa,
+        )
+        self._write_resistance(force, heading)
+        self._write_payload()
+
+    def _window(self, xy: np.ndarray, margin: float) -> tuple[slice, slice] | None:
+        """Grid index window (rows, cols) covering points ``xy`` plus ``margin`` metres."""
+        c0 = int(math.floor((xy[:, 0].min() - margin - self._x0) / self.dx))
+        c1 = int(math.ceil((xy[:, 0].max() + margin - self._x0) / self.dx)) + 1
+        r0 = int(math.floor((xy[:, 1].min() - margin - self._y0) / self.dy))
+        r1 = int(math.ceil((xy[:, 1].max() + margin - self._y0) / self.dy)) + 1
+        c0, r0 = max(c0, 0), max(r0, 0)
+        c1, r1 = min(c1, self.ncol), min(r1, self.nrow)
+        if c0 >= c1 or r0 >= r1:
+            return None
+        return slice(r0, r1), slice(c0, c1)
+
+    def _intake(
+        self,
+        hinge: np.ndarray,
+        heading: np.ndarray,
+        s_poly: np.ndarray,
+        z_poly: np.ndarray,
+        hold_m3: float,
+    ) -> None:
+        room_m3 = hold_m3 - self.bucket_load_kg / self.material.density_kg_m3
+        if room_m3 <= 0.0:
+            return
+        lateral = np.array([-heading[1], heading[0]])
+        half_width = self.bucket.width_m / 2
+        corners = np.concatenate(
+            [
+                hinge[:2] + np.outer(s_poly, heading) + side * half_width * lateral
+                for side in (-1.0, 1.0)
+            ]
+        )
+        window = self._window(corners, 0.0)
+        if window is None:
+            return
+        heights = self.heights[window]
+        if heights.max() <= z_poly.min():
+            return
+        rel_x = self._grid_x[window] - hinge[0]
+        rel_y = self._grid_y[window] - hinge[1]
+        s = rel_x * heading[0] + rel_y * heading[1]
+        inside_width = np.abs(rel_x * lateral[0] + rel_y * lateral[1]) <= half_width
+        # vertical extent of the bucket polygon at each cell's s: intersect with its edges
+        s_a, s_b = s_poly, np.roll(s_poly, -1)
+        z_a, z_b = z_poly, np.roll(z_poly, -1)
+        span = s_b - s_a
+        safe_span = np.where(np.abs(span) < 1e-9, 1e-9, span)
+        t = (s[..., None] - s_a) / safe_span
+        on_edge = (t >= 0.0) & (t <= 1.0) & (np.abs(span) >= 1e-9)
+        z_at = z_a + t * (z_b - z_a)
+        z_floor = np.where(on_edge, z_at, np.inf).min(axis=-1)
+        z_roof = np.where(on_edge, z_at, -np.inf).max(axis=-1)
+        inside = inside_width & np.isfinite(z_floor)
+        taken = np.where(inside, np.clip(np.minimum(heights, z_roof) - z_floor, 0.0, None), 0.0)
+        taken_m3 = float(taken.sum()) * self.cell_area_m2
+        if taken_m3 <= 0.0:
+            return
+        if taken_m3 > room_m3:
+            taken *= room_m3 / taken_m3
+            taken_m3 = room_m3
+        self.heights[window] = heights - taken
+        self.bucket_load_kg += taken_m3 * self.material.density_kg_m3
+
+    def _edge_depth(self, edge: np.ndarray, heading: np.ndarray) -> float:
+        """Mean depth [m] of the cutting edge below the pile surface one cell ahead of it."""
+        lateral = np.array([-heading[1], heading[0]])
+        ahead = edge[:2] + heading * self.dx
+        points = ahead + np.outer(self._edge_offsets, lateral)
+        cols = np.rint((points[:, 0] - self._x0) / self.dx).astype(int)
+        rows = np.rint((points[:, 1] - self._y0) / self.dy).astype(int)
+        valid = (cols >= 0) & (cols < self.ncol) & (rows >= 0) & (rows < self.nrow)
+        if not valid.any():
+            return 0.0
+        surface = np.zeros(len(points))
+        surface[valid] = self.heights[rows[valid], cols[valid]]
+        return float(np.clip(surface - edge[2], 0.0, None).mean())
+
+    # ------------------------------------------------------------------ MuJoCo writes
+    def _write_resistance(self, force_n: float, heading: np.ndarray) -> None:
+        m, d = self.model, self.data
+        rotation = d.xmat[self.machine.bucket_body].reshape(3, 3)
+        forward_world = np.array([heading[0], heading[1], 0.0])
+        m.actuator_gear[self._push, :3] = rotation.T @ forward_world
+        m.actuator_gear[self._side, :3] = rotation.T @ np.array([-heading[1], heading[0], 0.0])
+        m.actuator_gear[self._lift, :3] = rotation.T @ np.array([0.0, 0.0, 1.0])
+        m.actuator_forcerange[self._push] = (-force_n, 0.0)
+        m.actuator_biasprm[self._push, 2] = -force_n / YIELD_SPEED_M_S
+        side = SIDE_RATIO * force_n
+        m.actuator_forcerange[self._side] = (-side, side)
+        m.actuator_biasprm[self._side, 2] = -side / YIELD_SPEED_M_S
+        if self._depth_m > 0.0:
+            up, down = BREAKOUT_RATIO * force_n, max(BEARING_RATIO * force_n, MIN_BEARING_N)
+        else:
+            up = down = 0.0
+        m.actuator_forcerange[self._lift] = (-up, down)
+        m.actuator_biasprm[self._lift, 2] = -max(up, down) / YIELD_SPEED_M_S
+
+    def _write_payload(self) -> None:
+        mass = max(self.bucket_load_kg, 1e-6)
+        self.model.body_mass[self._payload] = mass
+        self.model.body_inertia[self._payload] = mass * 0.02  # ~0.25 m radius of gyration
+
+    def _sync_hfield(self) -> None:
+        data = self.model.hfield_data
+        data[self._adr : self._adr + self.heights.size] = self.heights.ravel() / MAX_PILE_HEIGHT_M
+
+    def prepare_render(self, renderer: mujoco.Renderer) -> None:
+        self._sync_hfield()
+        renderer._gl_context.make_current()  # upload needs the renderer's GL context current
+        mujoco.mjr_uploadHField(self.model, renderer._mjr_context, self._hfield)
