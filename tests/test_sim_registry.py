@@ -1,0 +1,59 @@
+"""The simulator plugin registry: discovery by name, errors, Gymnasium and TorchRL wiring."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from torchrl.envs.utils import check_env_specs
+
+import pilerl  # noqa: F401  (registers the plugins with Gymnasium)
+from pilerl.sim import (
+    SimulatorPlugin,
+    UnknownSimulatorError,
+    available_simulators,
+    get_simulator,
+    make_gym_env,
+    make_torchrl_env,
+)
+
+
+def test_both_plugins_are_found_by_name():
+    assert {"pile_loader", "toy_cart"} <= set(available_simulators())
+    assert get_simulator("pile_loader").gym_id == "pilerl/PileLoading-v0"
+
+
+def test_unknown_simulator_lists_known_ones():
+    with pytest.raises(UnknownSimulatorError) as error:
+        get_simulator("excavator")
+    assert "excavator" in str(error.value)
+    assert "pile_loader" in str(error.value) and "toy_cart" in str(error.value)
+
+
+def test_importing_pilerl_registers_gym_ids():
+    assert "pilerl/PileLoading-v0" in gym.registry
+    assert "pilerl/ToyCart-v0" in gym.registry
+
+
+def test_toy_plugin_runs_through_the_same_api():
+    env = make_gym_env("toy_cart")
+    obs, _ = env.reset(seed=3)
+    for _ in range(5):
+        obs, reward, *_ = env.step(np.array([1.0], np.float32))
+    assert obs["velocity"][0] > 0 and reward < 0
+    check_env_specs(make_torchrl_env("toy_cart", seed=0))
+
+
+@pytest.mark.parametrize(
+    ("declaration", "message"),
+    [
+        ({"name": "x", "gym_id": "bad id", "entry_point": "m:C"}, "gym_id"),
+        ({"name": "x", "gym_id": "ns/X-v0", "entry_point": "no colon"}, "entry_point"),
+        ({"name": "x", "gym_id": "ns/X-v0"}, "missing fields ['entry_point']"),
+        ({"name": "x", "gym_id": "ns/X-v0", "entry_point": "m:C", "colour": 1}, "unknown"),
+        (["not", "a", "mapping"], "must be a mapping"),
+    ],
+)
+def test_malformed_plugin_declarations_are_rejected(declaration, message):
+    with pytest.raises((ValueError, TypeError), match=message.replace("[", r"\[")):
+        SimulatorPlugin.from_declaration(declaration, where="entry point 'test'")
