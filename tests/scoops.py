@@ -26,8 +26,14 @@ class Scoop:
     reward_part_sums: list[float] = field(default_factory=list)
 
 
-def run_scoop(style: OperatorStyle, *, condition: str = "summer", seed: int = 0,
-              max_seconds: float = 30.0, **env_kwargs) -> Scoop:
+def run_scoop(
+    style: OperatorStyle,
+    *,
+    condition: str = "summer",
+    seed: int = 0,
+    max_seconds: float = 30.0,
+    **env_kwargs,
+) -> Scoop:
     env = gym.make("pilerl/PileLoading-v0", condition=condition, **env_kwargs)
     obs, info = env.reset(seed=seed)
     soil = env.unwrapped.soil

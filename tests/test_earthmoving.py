@@ -9,14 +9,16 @@ from pilerl_pile_loader.soil.base import BucketGeometry
 from pilerl_pile_loader.soil.earthmoving import cutting_force_n, fee_factors
 
 FACTORS = fee_factors(
-    rake_angle_rad=math.radians(65), friction_angle_rad=math.radians(38),
+    rake_angle_rad=math.radians(65),
+    friction_angle_rad=math.radians(38),
     tool_friction_angle_rad=math.radians(25),
 )
 
 
 def force(depth, cohesion=0.0):
-    return cutting_force_n(FACTORS, depth_m=depth, width_m=1.3, density_kg_m3=1700.0,
-                           cohesion_pa=cohesion)
+    return cutting_force_n(
+        FACTORS, depth_m=depth, width_m=1.3, density_kg_m3=1700.0, cohesion_pa=cohesion
+    )
 
 
 def test_no_force_above_the_surface():
@@ -35,8 +37,11 @@ def test_cohesion_adds_a_term_linear_in_depth():
 
 def test_degenerate_wedge_is_rejected():
     with pytest.raises(ValueError, match="no passive wedge"):
-        fee_factors(rake_angle_rad=math.radians(89), friction_angle_rad=math.radians(45),
-                    tool_friction_angle_rad=math.radians(45))
+        fee_factors(
+            rake_angle_rad=math.radians(89),
+            friction_angle_rad=math.radians(45),
+            tool_friction_angle_rad=math.radians(45),
+        )
 
 
 def test_bucket_holds_more_when_curled_and_nothing_when_dumping():

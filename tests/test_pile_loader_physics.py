@@ -42,8 +42,9 @@ def test_on_ice_telescope_pressure_still_rises_as_the_bucket_penetrates(ice_push
         pt = np.array(scoop.sensors["telescope_pressure"])
         free = pt[depth == 0.0][:10].mean()  # driving, bucket outside the pile
         pushing = pt[depth > 0.1].mean()
-        # ice caps the push at ~2-3 kN of traction: ~0.5 MPa or more on a 50 mm bore
-        assert pushing > free + 0.5  # MPa
+        # ice caps the net push at ~1.5 kN (0.76 MPa on a 50 mm bore); the mean rise must
+        # stand well clear of the 0.1 MPa sensor noise
+        assert pushing > free + 0.3  # MPa
         assert np.corrcoef(depth, pt)[0, 1] > 0.3  # noisy (wheels stick-slip) but rising
 
 
@@ -70,10 +71,16 @@ def test_never_raising_the_boom_gives_a_low_fill(summer_push):
 def test_fill_grows_with_penetration_depth():
     depths, fills = [], []
     for throttle in (0.2, 0.45, 0.8):
-        style = OperatorStyle(approach_throttle=throttle, push_throttle=throttle, lift=0.0,
-                              curl_pulse=0.0, finish_curl=False)
-        scoop = run_scoop(style, condition="summer", seed=0, max_seconds=6.0,
-                          start_distance_range_m=(1.0, 1.0))
+        style = OperatorStyle(
+            approach_throttle=throttle,
+            push_throttle=throttle,
+            lift=0.0,
+            curl_pulse=0.0,
+            finish_curl=False,
+        )
+        scoop = run_scoop(
+            style, condition="summer", seed=0, max_seconds=6.0, start_distance_range_m=(1.0, 1.0)
+        )
         depths.append(peak(scoop.depth_m))
         fills.append(scoop.info["fill_fraction"])
     assert depths == sorted(depths) and depths[-1] > depths[0] + 0.05
@@ -84,8 +91,9 @@ def test_fill_grows_with_penetration_depth():
 def test_mass_is_conserved(condition):
     scoop = run_scoop(SENSIBLE, condition=condition, seed=4)
     assert max(scoop.fill) > 0.05  # material did move
-    initial_kg = scoop.info["pile_mass_kg"] + scoop.info["bucket_load_kg"] + scoop.info[
-        "spilled_kg"]
+    initial_kg = (
+        scoop.info["pile_mass_kg"] + scoop.info["bucket_load_kg"] + scoop.info["spilled_kg"]
+    )
     assert max(scoop.mass_error_kg) < 1e-6 * initial_kg
 
 

@@ -57,3 +57,18 @@ def test_toy_plugin_runs_through_the_same_api():
 def test_malformed_plugin_declarations_are_rejected(declaration, message):
     with pytest.raises((ValueError, TypeError), match=message.replace("[", r"\[")):
         SimulatorPlugin.from_declaration(declaration, where="entry point 'test'")
+
+
+def test_batched_torchrl_env_steps_several_simulators_in_one_process():
+    env = make_torchrl_env("toy_cart", num_envs=3, seed=0)
+    check_env_specs(env)
+    rollout = env.rollout(4)
+    assert rollout.batch_size == (3, 4)
+    assert rollout["position"].shape == (3, 4, 1)
+    # seeded differently per sub-env: the three carts start at different positions
+    assert len(set(rollout["position"][:, 0, 0].tolist())) == 3
+
+
+def test_num_envs_must_be_positive():
+    with pytest.raises(ValueError, match="num_envs"):
+        make_torchrl_env("toy_cart", num_envs=0)

@@ -86,7 +86,7 @@ class PileLoadingEnv(gym.Env):
         soil: str = "heightfield",
         control_hz: float = 20.0,
         physics_hz: float = 500.0,
-        soil_hz: float = 60.0,
+        soil_hz: float = 40.0,
         sensor_noise: float = 1.0,
         start_distance_range_m: Sequence[float] = (1.0, 5.0),
         approach_angle_range_deg: Sequence[float] = (-10.0, 10.0),
@@ -275,8 +275,8 @@ class PileLoadingEnv(gym.Env):
             machine.command(self._valves[0], self._valves[1], self._pump_fraction)
             mujoco.mj_step(m, d, nstep=int(steps))
             self.soil.update(chunk_dt)
-            machine.limit_cylinder_windup()
             self._energy_j += machine.hydraulic_power_w() * chunk_dt
+        machine.limit_cylinder_windup()
         if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
             raise RuntimeError(
                 f"simulation diverged (non-finite state) at t={self._elapsed_s:.3f} s; "

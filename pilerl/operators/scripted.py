@@ -35,6 +35,9 @@ class OperatorStyle:
         curl_pulse: bucket valve opening during a pulse [0, 1].
         pulse_period_s: one curl pulse every this many seconds [s] (0 = curl continuously).
         pulse_duty: fraction of each period spent curling.
+        boom_stall_pressure_mpa: boom pressure at which the operator feels the boom stall
+            against the pile and eases off the throttle [MPa].
+        stall_throttle: throttle while the boom is stalled.
         fill_boom_angle_rad: boom angle at which filling ends and finishing starts [rad].
         early_boom_rise_s: if set, start raising the boom this long after the start,
             impact or not [s].
@@ -51,6 +54,8 @@ class OperatorStyle:
     curl_pulse: float = 0.8
     pulse_period_s: float = 1.0
     pulse_duty: float = 0.4
+    boom_stall_pressure_mpa: float = 18.0
+    stall_throttle: float = 0.15
     fill_boom_angle_rad: float = 0.0
     early_boom_rise_s: float | None = None
     finish_curl: bool = True
@@ -103,7 +108,9 @@ class ScriptedScoopOperator:
                 pulsing = st.pulse_period_s <= 0 or math.fmod(t, st.pulse_period_s) < (
                     st.pulse_duty * st.pulse_period_s
                 )
-                action = (st.lift, st.curl_pulse if pulsing else 0.0, st.push_throttle)
+                stalled = reading["boom_pressure"] >= st.boom_stall_pressure_mpa
+                throttle = st.stall_throttle if stalled else st.push_throttle
+                action = (st.lift, st.curl_pulse if pulsing else 0.0, throttle)
         else:
             action = (1.0, 1.0, 0.0)
         self._time_s += self.dt

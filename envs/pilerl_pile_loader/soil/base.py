@@ -10,6 +10,7 @@ same before and after every call.
 
 from __future__ import annotations
 
+import functools
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -80,15 +81,15 @@ class BucketGeometry:
     width_m: float = 1.30
     heap_fraction: float = 0.10  # heap above the struck volume when curled back
 
-    @property
+    @functools.cached_property  # the dataclass is frozen: compute once
     def polygon(self) -> np.ndarray:
         return np.asarray(self.interior_xz_m, dtype=float)
 
-    @property
+    @functools.cached_property  # the dataclass is frozen: compute once
     def cross_section_m2(self) -> float:
         return _polygon_area(self.polygon)
 
-    @property
+    @functools.cached_property  # the dataclass is frozen: compute once
     def rated_volume_m3(self) -> float:
         """Struck capacity [m^3]; fill_fraction 1.0 means this much material."""
         return self.cross_section_m2 * self.width_m

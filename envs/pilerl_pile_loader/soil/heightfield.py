@@ -12,11 +12,14 @@ Per update (a few per control step):
    force (``earthmoving.py``), scaled by ``BUCKET_RESISTANCE_FACTOR`` because a bucket
    also drags its side plates and floor through the material (a calibration constant,
    see docs/machine_model.md). MuJoCo applies it through three actuators on the
-   cutting-edge site: ``soil_push`` resists forward motion along the heading (one-sided),
-   ``soil_side`` resists sideways motion of the buried bucket, and ``soil_lift`` resists
-   vertical motion (breakout upward, bearing downward). Each is a
-   damper ``F = -c v`` clamped to the FEE force, so MuJoCo's implicit integrator handles
-   the stiffness while the soil stays perfectly plastic once the force cap is reached.
+   cutting-edge site: ``soil_push`` resists forward motion along the heading (one-sided:
+   soil pushes, never pulls), ``soil_side`` resists sideways motion of the buried bucket,
+   and ``soil_lift`` resists vertical motion (breakout). Each is a damper ``F = -c v``
+   clamped to a force cap, so MuJoCo's implicit integrator handles the stiffness while the
+   soil stays perfectly plastic once the cap is reached. The vertical cap is the same up
+   and down: an asymmetric damper on a machine vibrating on its tyres would rectify the
+   vibration and ratchet the front axle off the ground. The ground contact, not the
+   pile, carries a bucket pressed down.
 4. **Payload.** The load's mass is written into the ``payload`` body, so booms, cylinders
    and tyres feel it.
 
@@ -41,13 +44,12 @@ if TYPE_CHECKING:
 RAKE_ANGLE_DEG = 65.0  # effective rake of a loader bucket's back plate (McKyes' beta) [deg]
 BUCKET_RESISTANCE_FACTOR = 2.0  # bucket vs flat blade: side plates and floor friction
 YIELD_SPEED_M_S = 0.002  # blade speed at which the full FEE force develops [m/s]
-BREAKOUT_RATIO = 0.25  # upward (breakout) resistance / horizontal cutting force
+VERTICAL_RATIO = 0.25  # vertical (breakout) resistance / horizontal cutting force
 SIDE_RATIO = 1.0  # sideways resistance of a buried bucket / horizontal cutting force
-BEARING_RATIO = 3.0  # downward (bearing) resistance / horizontal cutting force
-MIN_BEARING_N = 5000.0  # bearing force of the pile once the edge is below its surface [N]
 SPILL_TIME_CONSTANT_S = 0.15  # how fast an over-full bucket sheds its excess [s]
 MAX_PILE_HEIGHT_M = 2.0  # heightfield elevation range [m]
 EDGE_SAMPLES = 7  # points along the cutting edge where the depth is sampled
+HOLDING_TABLE_POINTS = 721  # pitch samples of the holding-volume table (0.5 deg apart)
 PILE_RGBA = (0.55, 0.47, 0.36, 1.0)
 
 
@@ -110,7 +112,15 @@ class HeightfieldSoil(SoilModel):
             friction_angle_rad=self.repose_angle_rad,
             tool_friction_angle_rad=math.radians(self.material.tool_friction_angle_deg),
         )
-        self._polygon = self.bucket.polygon
+        polygon = self.bucket.polygon
+        self._polygon_local = np.zeros((len(polygon), 3))
+        self._polygon_local[:, 0], self._polygon_local[:, 2] = polygon[:, 0], polygon[:, 1]
+        self._edge_next = np.roll(np.arange(len(polygon)), -1)
+        # the holding volume depends only on pitch: tabulate it once
+        self._pitch_table = np.linspace(-math.pi, math.pi, HOLDING_TABLE_POINTS)
+        self._holding_table = np.array([
+            self.bucket.holding_volume_m3(p, self.repose_angle_rad) for p in self._pitch_table
+        ])
         self._edge_offsets = np.linspace(-0.45, 0.45, EDGE_SAMPLES) * self.bucket.width_m
         self.heights = np.zeros((self.nrow, self.ncol))
 
@@ -154,15 +164,13 @@ class HeightfieldSoil(SoilModel):
         rotation = d.xmat[machine.bucket_body].reshape(3, 3)
         hinge = d.xpos[machine.bucket_body]
         # bucket inside polygon in the vertical plane through the hinge: (s along heading, z)
-        local = np.zeros((len(self._polygon), 3))
-        local[:, 0], local[:, 2] = self._polygon[:, 0], self._polygon[:, 1]
-        world = hinge + local @ rotation.T
+        world = hinge + self._polygon_local @ rotation.T
         s_poly = (world[:, :2] - hinge[:2]) @ heading
         z_poly = world[:, 2]
 
         density = self.material.density_kg_m3
         pitch = machine.bucket_pitch()
-        hold_m3 = self.bucket.holding_volume_m3(pitch, self.repose_angle_rad)
+        hold_m3 = float(np.interp(pitch, self._pitch_table, self._holding_table))
         self._intake(hinge, heading, s_poly, z_poly, hold_m3)
 
         load_m3 = self.bucket_load_kg / density
@@ -225,8 +233,8 @@ class HeightfieldSoil(SoilModel):
         s = rel_x * heading[0] + rel_y * heading[1]
         inside_width = np.abs(rel_x * lateral[0] + rel_y * lateral[1]) <= half_width
         # vertical extent of the bucket polygon at each cell's s: intersect with its edges
-        s_a, s_b = s_poly, np.roll(s_poly, -1)
-        z_a, z_b = z_poly, np.roll(z_poly, -1)
+        s_a, s_b = s_poly, s_poly[self._edge_next]
+        z_a, z_b = z_poly, z_poly[self._edge_next]
         span = s_b - s_a
         safe_span = np.where(np.abs(span) < 1e-9, 1e-9, span)
         t = (s[..., None] - s_a) / safe_span
@@ -272,12 +280,9 @@ class HeightfieldSoil(SoilModel):
         side = SIDE_RATIO * force_n
         m.actuator_forcerange[self._side] = (-side, side)
         m.actuator_biasprm[self._side, 2] = -side / YIELD_SPEED_M_S
-        if self._depth_m > 0.0:
-            up, down = BREAKOUT_RATIO * force_n, max(BEARING_RATIO * force_n, MIN_BEARING_N)
-        else:
-            up = down = 0.0
-        m.actuator_forcerange[self._lift] = (-up, down)
-        m.actuator_biasprm[self._lift, 2] = -max(up, down) / YIELD_SPEED_M_S
+        vertical = VERTICAL_RATIO * force_n
+        m.actuator_forcerange[self._lift] = (-vertical, vertical)
+        m.actuator_biasprm[self._lift, 2] = -vertical / YIELD_SPEED_M_S
 
     def _write_payload(self) -> None:
         mass = max(self.bucket_load_kg, 1e-6)
