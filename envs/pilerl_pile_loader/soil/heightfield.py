@@ -51,6 +51,7 @@ MAX_PILE_HEIGHT_M = 2.0  # heightfield elevation range [m]
 EDGE_SAMPLES = 7  # points along the cutting edge where the depth is sampled
 HOLDING_TABLE_POINTS = 721  # pitch samples of the holding-volume table (0.5 deg apart)
 PILE_RGBA = (0.55, 0.47, 0.36, 1.0)
+RENDER_SINK_M = 0.005  # drawn pile sits this far down so bare cells hide under the ground
 
 
 class HeightfieldSoil(SoilModel):
@@ -79,7 +80,7 @@ class HeightfieldSoil(SoilModel):
             name="pile",
             type=mujoco.mjtGeom.mjGEOM_HFIELD,
             hfieldname="pile",
-            pos=[self._x0 + length_x / 2, self._y0 + length_y / 2, 0.0],
+            pos=[self._x0 + length_x / 2, self._y0 + length_y / 2, -RENDER_SINK_M],
             contype=0,
             conaffinity=0,
             rgba=list(PILE_RGBA),
@@ -118,9 +119,9 @@ class HeightfieldSoil(SoilModel):
         self._edge_next = np.roll(np.arange(len(polygon)), -1)
         # the holding volume depends only on pitch: tabulate it once
         self._pitch_table = np.linspace(-math.pi, math.pi, HOLDING_TABLE_POINTS)
-        self._holding_table = np.array([
-            self.bucket.holding_volume_m3(p, self.repose_angle_rad) for p in self._pitch_table
-        ])
+        self._holding_table = np.array(
+            [self.bucket.holding_volume_m3(p, self.repose_angle_rad) for p in self._pitch_table]
+        )
         self._edge_offsets = np.linspace(-0.45, 0.45, EDGE_SAMPLES) * self.bucket.width_m
         self.heights = np.zeros((self.nrow, self.ncol))
 

@@ -1,0 +1,99 @@
+"""Typed config schemas registered in Hydra's ConfigStore.
+
+The YAML files under conf/ extend these schemas, so a wrong type or an unknown key fails
+when Hydra composes the config, before any work starts. Recipes turn a config into plain
+library arguments once, at their boundary (``EnvConfig.make_kwargs``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING
+
+
+@dataclass
+class EnvConfig:
+    """Which simulator to build and with what arguments.
+
+    Attributes:
+        simulator: plugin name (``pile_loader``, ``toy_cart``...).
+        condition: condition preset (``summer``, ``winter_a`` .. ``winter_d``).
+        soil: soil model (``heightfield`` or ``particles``).
+        control_hz: control rate [Hz].
+        physics_hz: physics rate [Hz] (>= 500).
+        sensor_noise: multiplier of the sensors' default noise (0 = noiseless).
+        start_distance_range_m: cutting edge to pile toe at reset [m], (low, high).
+        approach_angle_range_deg: heading relative to the pile normal [deg], (low, high).
+    """
+
+    simulator: str = "pile_loader"
+    condition: str = "summer"
+    soil: str = "heightfield"
+    control_hz: float = 20.0
+    physics_hz: float = 500.0
+    sensor_noise: float = 1.0
+    start_distance_range_m: list[float] = field(default_factory=lambda: [1.0, 5.0])
+    approach_angle_range_deg: list[float] = field(default_factory=lambda: [-10.0, 10.0])
+
+    def make_kwargs(self, **overrides) -> dict:
+        """Keyword arguments for ``pilerl.sim.make_gym_env`` (simulator name excluded)."""
+        kwargs = {k: v for k, v in asdict(self).items() if k != "simulator"}
+        kwargs["start_distance_range_m"] = tuple(kwargs["start_distance_range_m"])
+        kwargs["approach_angle_range_deg"] = tuple(kwargs["approach_angle_range_deg"])
+        kwargs.update(overrides)
+        return kwargs
+
+
+@dataclass
+class OperatorConfig:
+    """Scripted operator style; fields mirror ``pilerl.operators.OperatorStyle``."""
+
+    approach_throttle: float = 0.5
+    push_throttle: float = 0.6
+    trigger_pressure_mpa: float = 16.0
+    trigger_sensor: str = "drive_pressure"
+    reaction_delay_s: float = 0.2
+    lift: float = 0.6
+    curl_pulse: float = 0.8
+    pulse_period_s: float = 1.0
+    pulse_duty: float = 0.4
+    boom_stall_pressure_mpa: float = 18.0
+    stall_throttle: float = 0.15
+    fill_boom_angle_rad: float = 0.0
+    early_boom_rise_s: float | None = None
+    finish_curl: bool = True
+    max_fill_seconds: float = 12.0
+
+
+@dataclass
+class ScoopConfig:
+    """The scoop recipe: scripted scoops recorded, rendered and reported per condition.
+
+    Attributes:
+        env: simulator arguments; ``env.condition`` is replaced by each of ``conditions``.
+        operator: scripted operator style.
+        conditions: conditions to scoop in, one episode each.
+        seed: episode seed (start distance and approach angle follow from it).
+        video: write an mp4 per condition.
+        render_width, render_height: video frame size [px].
+        camera: MJCF camera for the video.
+    """
+
+    env: EnvConfig = field(default_factory=EnvConfig)
+    operator: OperatorConfig = field(default_factory=OperatorConfig)
+    conditions: list[str] = field(default_factory=lambda: ["summer", "winter_c"])
+    seed: int = 0
+    video: bool = True
+    render_width: int = 640
+    render_height: int = 360
+    camera: str = "side"
+    output_dir: str = MISSING  # set by the primary YAML to Hydra's run directory
+
+
+def register_configs() -> None:
+    """Put the schemas in Hydra's ConfigStore (idempotent)."""
+    store = ConfigStore.instance()
+    store.store(name="scoop_schema", node=ScoopConfig)
+    store.store(group="env", name="env_schema", node=EnvConfig)

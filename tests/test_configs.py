@@ -1,0 +1,52 @@
+"""Every config under conf/ composes; wrong types and unknown keys fail at composition."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+from hydra.errors import ConfigCompositionException
+from omegaconf import OmegaConf
+from omegaconf.errors import ConfigKeyError, ValidationError
+
+from pilerl.config import ScoopConfig, register_configs
+
+CONF = Path(__file__).resolve().parents[1] / "conf"
+PRIMARY = sorted(p.stem for p in CONF.glob("*.yaml"))
+
+register_configs()
+
+
+def compose_config(name: str, overrides: list[str] | None = None):
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        return compose(config_name=name, overrides=overrides or [], return_hydra_config=True)
+
+
+@pytest.mark.parametrize("name", PRIMARY)
+def test_every_primary_config_composes(name):
+    cfg = compose_config(name)
+    assert cfg.env.simulator == "pile_loader"
+
+
+def test_scoop_config_becomes_the_typed_schema():
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose(config_name="scoop", overrides=["output_dir=/tmp/unused"])
+    config = OmegaConf.to_object(cfg)
+    assert isinstance(config, ScoopConfig)
+    assert config.env.make_kwargs()["start_distance_range_m"] == (1.0, 5.0)
+
+
+@pytest.mark.parametrize(
+    "override",
+    ["env.control_hz=fast", "seed=zero", "video=maybe"],
+)
+def test_wrong_types_fail_at_composition(override):
+    with pytest.raises((ConfigCompositionException, ValidationError)):
+        compose_config("scoop", [override])
+
+
+@pytest.mark.parametrize("override", ["env.colour=red", "operator.speed=1"])
+def test_unknown_keys_fail_at_composition(override):
+    with pytest.raises((ConfigCompositionException, ConfigKeyError)):
+        compose_config("scoop", [override])

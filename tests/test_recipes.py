@@ -1,0 +1,49 @@
+"""Every recipe runs end to end on a tiny budget, and fails cleanly on bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run_recipe(script: str, *overrides: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MUJOCO_GL": "egl"}
+    return subprocess.run(
+        [sys.executable, str(ROOT / "recipes" / script), *overrides],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+
+
+def test_scoop_recipe_writes_video_plot_trace_and_report(tmp_path):
+    result = run_recipe(
+        "scoop.py",
+        f"hydra.run.dir={tmp_path}",
+        "conditions=[summer]",
+        "env.start_distance_range_m=[1.0,1.0]",
+        "render_width=96",
+        "render_height=64",
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    for name in ("scoop_summer.mp4", "scoop_signals.png", "trace_summer.csv", "report.md"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    summary = json.loads((tmp_path / "summary.json").read_text())["summer"]
+    assert summary["success"] is True and summary["fill_fraction"] >= 0.5
+    header = (tmp_path / "trace_summer.csv").read_text().splitlines()[0]
+    assert "drive_pressure" in header and "u_throttle" in header
+
+
+def test_scoop_recipe_rejects_an_unknown_condition_before_writing_results(tmp_path):
+    result = run_recipe(
+        "scoop.py", f"hydra.run.dir={tmp_path}", "conditions=[summer,spring]", "video=false"
+    )
+    assert result.returncode != 0
+    assert "unknown condition 'spring'" in result.stderr
+    assert not list(tmp_path.glob("*.csv")) and not (tmp_path / "report.md").exists()
