@@ -8,10 +8,15 @@ PYTHON=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
   "$PYTHON" -m venv .venv
 fi
+pip_install() {
+  # drop pip's noise about package-index locations this machine does not have
+  .venv/bin/python -m pip install --quiet --disable-pip-version-check "$@" 2>&1 \
+    | sed '/is ignored: it is neither a file nor a directory/d'
+}
 # torch first and pinned: 2.13.0 resolves to the local CPU wheel; an unpinned torch would
 # pull several GB of CUDA packages.
-.venv/bin/python -m pip install --quiet --disable-pip-version-check torch==2.13.0
-.venv/bin/python -m pip install --quiet --disable-pip-version-check -e ".[dev]"
+pip_install torch==2.13.0
+pip_install -e ".[dev]"
 
 # Offscreen rendering (MUJOCO_GL=egl) needs an EGL library; install Mesa's if it is missing.
 if ! ldconfig -p | grep -q 'libEGL.so.1'; then

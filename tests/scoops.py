@@ -12,7 +12,7 @@ from pilerl.operators import OperatorStyle, ScriptedScoopOperator
 
 SENSIBLE = OperatorStyle()
 EARLY_BOOM = OperatorStyle(early_boom_rise_s=0.5)
-NO_BOOM = OperatorStyle(lift=0.0, curl_pulse=0.0, finish_curl=False)
+NO_BOOM = OperatorStyle(trigger_pressure_mpa=1000.0)  # the trigger never fires: pushes on
 
 
 @dataclass

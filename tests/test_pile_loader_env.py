@@ -92,6 +92,8 @@ def test_start_distance_is_the_gap_between_cutting_edge_and_pile_toe():
         ({"control_hz": 0.0}, "control_hz"),
         ({"start_distance_range_m": (5.0, 1.0)}, "start_distance_range_m"),
         ({"sensor_noise": -1.0}, "sensor_noise"),
+        ({"sensor_noise": {"drive_pressure": float("nan")}}, "sensor_noise"),
+        ({"sensor_noise": {"speedometer": 0.1}}, r"unknown sensor\(s\) \['speedometer'\]"),
         ({"render_mode": "depth_array"}, "render_mode"),
     ],
 )
@@ -136,3 +138,15 @@ def test_rgb_array_render_shows_a_scene():
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
     assert frame.std() > 10  # not a blank image
     env.close()
+
+
+def test_noise_is_configurable_per_sensor():
+    env = make(sensor_noise={"drive_pressure": 0.0, "telescope_pressure": 2.0}).unwrapped
+    env.reset(seed=0)
+    readings = [env.step(np.zeros(3))[0] for _ in range(30)]
+    drive = np.array([r["drive_pressure"][0] for r in readings])
+    telescope = np.array([r["telescope_pressure"][0] for r in readings])
+    boom = np.array([r["boom_angle"][0] for r in readings])
+    assert np.abs(np.diff(drive)).max() < 0.05  # noiseless and standing still
+    assert telescope.std() > 1.0  # 2 MPa noise
+    assert 0.0005 < boom.std() < 0.01  # default 0.002 rad noise kept

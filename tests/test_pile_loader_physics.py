@@ -71,13 +71,7 @@ def test_never_raising_the_boom_gives_a_low_fill(summer_push):
 def test_fill_grows_with_penetration_depth():
     depths, fills = [], []
     for throttle in (0.2, 0.45, 0.8):
-        style = OperatorStyle(
-            approach_throttle=throttle,
-            push_throttle=throttle,
-            lift=0.0,
-            curl_pulse=0.0,
-            finish_curl=False,
-        )
+        style = OperatorStyle(approach_throttle=throttle, trigger_pressure_mpa=1000.0)
         scoop = run_scoop(
             style, condition="summer", seed=0, max_seconds=6.0, start_distance_range_m=(1.0, 1.0)
         )

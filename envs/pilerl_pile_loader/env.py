@@ -20,7 +20,7 @@ Finite values outside [-1, 1] are clipped; NaN/inf or a wrong shape raise ``Valu
 ## Observation Space
 ``Dict`` of seven ``Box(low, high, (1,), float32)`` sensors (``sensors.SENSORS``): boom_angle
 [rad], bucket_angle [rad], drive_pressure [MPa], telescope_pressure [MPa], boom_pressure
-[MPa], bucket_pressure [MPa], pump_angle [rad]. Gaussian noise, scaled by ``sensor_noise``.
+[MPa], bucket_pressure [MPa], pump_angle [rad]. Additive Gaussian noise (``sensor_noise``).
 
 ## Rewards
 The sum of the parts in ``info``: reward_fill, reward_spill, reward_time, reward_energy,
@@ -40,7 +40,7 @@ See ``PileLoadingEnv.__init__``.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import gymnasium as gym
 import mujoco
@@ -66,8 +66,11 @@ class PileLoadingEnv(gym.Env):
         soil: soil model name, ``heightfield`` (fast, default) or ``particles``.
         control_hz: control rate [Hz] (20 default; the real machine ran at 3).
         physics_hz: physics rate [Hz], at least 500.
-        soil_hz: soil-model update rate [Hz]; rounded to a whole number per control step.
-        sensor_noise: multiplier of every sensor's default noise std (0 = noiseless).
+        soil_hz: soil-model update rate [Hz]: a whole number of updates per control step,
+            or, when control is faster than that, one update every few control steps.
+        sensor_noise: a multiplier of every sensor's default noise std (0 = noiseless), or
+            a mapping ``{sensor name: std in the sensor's unit}`` for the sensors to change
+            (the others keep their default).
         start_distance_range_m: cutting edge to pile toe at reset, drawn uniformly [m].
         approach_angle_range_deg: heading relative to the pile normal, drawn uniformly [deg].
         condition_overrides: replace preset fields, e.g. ``{"material": {"cohesion_pa": 0}}``.
@@ -87,7 +90,7 @@ class PileLoadingEnv(gym.Env):
         control_hz: float = 20.0,
         physics_hz: float = 500.0,
         soil_hz: float = 40.0,
-        sensor_noise: float = 1.0,
+        sensor_noise: float | Mapping[str, float] = 1.0,
         start_distance_range_m: Sequence[float] = (1.0, 5.0),
         approach_angle_range_deg: Sequence[float] = (-10.0, 10.0),
         condition_overrides: dict[str, dict[str, float]] | None = None,
@@ -106,14 +109,11 @@ class PileLoadingEnv(gym.Env):
         _check_rates(control_hz, physics_hz, soil_hz)
         _check_range("start_distance_range_m", start_distance_range_m, 0.5, 20.0)
         _check_range("approach_angle_range_deg", approach_angle_range_deg, -45.0, 45.0)
-        if not (math.isfinite(sensor_noise) and sensor_noise >= 0):
-            raise ValueError(f"sensor_noise: must be finite and >= 0, got {sensor_noise}")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode: must be None or 'rgb_array', got {render_mode!r}")
 
         self.start_distance_range_m = tuple(float(v) for v in start_distance_range_m)
         self.approach_angle_range_rad = tuple(math.radians(v) for v in approach_angle_range_deg)
-        self.sensor_noise = float(sensor_noise)
         self.task = task or ScoopTask()
         self.reward_weights = reward_weights or RewardWeights()
         self.render_mode, self.render_size, self.camera = render_mode, render_size, camera
@@ -153,13 +153,20 @@ class PileLoadingEnv(gym.Env):
         self.dt = self.frame_skip * self.model.opt.timestep  # control period [s]
         n_chunks = max(1, min(self.frame_skip, round(self.dt * soil_hz)))
         self._chunks = np.diff(np.linspace(0, self.frame_skip, n_chunks + 1).round().astype(int))
+        # physics steps between soil updates: after every chunk when control is slower than
+        # the soil rate, else every few control steps (counted across steps)
+        if self.dt * soil_hz >= 1.0:
+            self._soil_period_steps = int(self._chunks.min())
+        else:
+            self._soil_period_steps = round(1.0 / (soil_hz * self.model.opt.timestep))
+        self._steps_since_soil = 0
         self.metadata = {**self.metadata, "render_fps": 1.0 / self.dt}
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self.observation_space = spaces.Dict(
             {s.name: spaces.Box(s.low, s.high, shape=(1,), dtype=np.float32) for s in SENSORS}
         )
-        self._noise_std = np.array([s.noise_std for s in SENSORS]) * self.sensor_noise
+        self._noise_std = _noise_std(sensor_noise)
         self._low = np.array([s.low for s in SENSORS])
         self._high = np.array([s.high for s in SENSORS])
         self._renderer: mujoco.Renderer | None = None
@@ -182,6 +189,7 @@ class PileLoadingEnv(gym.Env):
         self._pump_fraction = 0.0
         self._elapsed_s = 0.0
         self._energy_j = 0.0
+        self._steps_since_soil = 0
         self._run_physics(round(SETTLE_SECONDS / m.opt.timestep))
         self._energy_j = 0.0
         self._last_fill = self.soil.fill_fraction
@@ -274,7 +282,10 @@ class PileLoadingEnv(gym.Env):
                 self._pump_fraction += pump_blend * (command[2] - self._pump_fraction)
             machine.command(self._valves[0], self._valves[1], self._pump_fraction)
             mujoco.mj_step(m, d, nstep=int(steps))
-            self.soil.update(chunk_dt)
+            self._steps_since_soil += int(steps)
+            if self._steps_since_soil >= self._soil_period_steps:
+                self.soil.update(self._steps_since_soil * m.opt.timestep)
+                self._steps_since_soil = 0
             self._energy_j += machine.hydraulic_power_w() * chunk_dt
         machine.limit_cylinder_windup()
         if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
@@ -299,7 +310,7 @@ class PileLoadingEnv(gym.Env):
                 mc.pump_angle(self._pump_fraction),
             ]
         )
-        if self.sensor_noise > 0:
+        if self._noise_std.any():
             values = values + self.np_random.normal(0.0, self._noise_std)
         values = np.clip(values, self._low, self._high).astype(np.float32)
         return {s.name: values[i : i + 1] for i, s in enumerate(SENSORS)}
@@ -349,6 +360,24 @@ def _validate_action(action) -> np.ndarray:
         ]
         raise ValueError(f"PileLoadingEnv.step: action has non-finite values in {bad}: {u}")
     return np.clip(u, -1.0, 1.0)
+
+
+def _noise_std(sensor_noise: float | Mapping[str, float]) -> np.ndarray:
+    """Noise std per sensor, in ``SENSORS`` order, from a multiplier or a per-name mapping."""
+    default = np.array([s.noise_std for s in SENSORS])
+    if isinstance(sensor_noise, Mapping):
+        names = [s.name for s in SENSORS]
+        unknown = sorted(set(sensor_noise) - set(names))
+        if unknown:
+            raise ValueError(f"sensor_noise: unknown sensor(s) {unknown}; known: {names}")
+        std = default.copy()
+        for name, value in sensor_noise.items():
+            std[names.index(name)] = value
+    else:
+        std = default * sensor_noise
+    if not (np.isfinite(std).all() and (std >= 0).all()):
+        raise ValueError(f"sensor_noise: every std must be finite and >= 0, got {sensor_noise}")
+    return std
 
 
 def _split(n_steps: int, like: np.ndarray) -> list[int]:

@@ -51,19 +51,20 @@ class OperatorConfig:
     """Scripted operator style; fields mirror ``pilerl.operators.OperatorStyle``."""
 
     approach_throttle: float = 0.5
-    push_throttle: float = 0.6
+    push_throttle: float = 0.7
     trigger_pressure_mpa: float = 16.0
     trigger_sensor: str = "drive_pressure"
     reaction_delay_s: float = 0.2
-    lift: float = 0.6
-    curl_pulse: float = 0.8
-    pulse_period_s: float = 1.0
-    pulse_duty: float = 0.4
+    lift: float = 0.7
+    curl: float = 0.8
+    push_s: float = 0.5
+    lift_s: float = 0.5
+    curl_s: float = 0.5
+    overlap: bool = False
     boom_stall_pressure_mpa: float = 18.0
-    stall_throttle: float = 0.15
     fill_boom_angle_rad: float = 0.0
+    finish_curl_angle_rad: float = 1.2
     early_boom_rise_s: float | None = None
-    finish_curl: bool = True
     max_fill_seconds: float = 12.0
 
 

@@ -1,5 +1,19 @@
 """Operators: controllers that act from named sensor readings (scripted for now)."""
 
-from .scripted import OperatorStyle, ScriptedScoopOperator
+from .scripted import (
+    PHASES,
+    OperatorStyle,
+    ScriptedScoopOperator,
+    active_controls,
+    phase_index,
+    sample_style,
+)
 
-__all__ = ["OperatorStyle", "ScriptedScoopOperator"]
+__all__ = [
+    "PHASES",
+    "OperatorStyle",
+    "ScriptedScoopOperator",
+    "active_controls",
+    "phase_index",
+    "sample_style",
+]

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from .base import BucketGeometry, PileGeometry, SoilModel
 from .heightfield import HeightfieldSoil
+from .particles import ParticleSoil
 
 SOIL_MODELS: dict[str, type[SoilModel]] = {
     HeightfieldSoil.name: HeightfieldSoil,
+    ParticleSoil.name: ParticleSoil,
 }
 
 
