@@ -47,3 +47,40 @@ def test_scoop_recipe_rejects_an_unknown_condition_before_writing_results(tmp_pa
     assert result.returncode != 0
     assert "unknown condition 'spring'" in result.stderr
     assert not list(tmp_path.glob("*.csv")) and not (tmp_path / "report.md").exists()
+
+
+def test_record_then_build_dataset_recipes(tmp_path):
+    demos, dataset = tmp_path / "demos", tmp_path / "d_ii"
+    result = run_recipe(
+        "record.py",
+        f"hydra.run.dir={tmp_path / 'run1'}",
+        "n_episodes=2",
+        "record_hz=100",
+        f"out_dir={demos}",
+        "workers=1",
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    index = json.loads((demos / "index.json").read_text())
+    assert len(index["episodes"]) == 2 and index["sensors"]["drive_pressure"] == "MPa"
+    result = run_recipe(
+        "build_dataset.py",
+        f"hydra.run.dir={tmp_path / 'run2'}",
+        "dataset=d_i",
+        f"source={demos}",
+        f"out_dir={dataset}",
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    built = json.loads((dataset / "index.json").read_text())
+    assert len(built["episodes"]) == 2 and built["stats"]["n_samples"] > 0
+
+
+def test_record_recipe_rejects_bad_parameters_before_writing(tmp_path):
+    result = run_recipe(
+        "record.py",
+        f"hydra.run.dir={tmp_path / 'run'}",
+        "n_episodes=2",
+        "env.condition=monsoon",
+        f"out_dir={tmp_path / 'demos'}",
+    )
+    assert result.returncode != 0 and "unknown condition 'monsoon'" in result.stderr
+    assert not (tmp_path / "demos").exists()

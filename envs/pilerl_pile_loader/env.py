@@ -49,7 +49,7 @@ from gymnasium import spaces
 
 from .conditions import Condition, get_condition
 from .machine import Machine, MachineParameters, load_machine_spec
-from .sensors import SENSORS
+from .sensors import CONTROL_NAMES, SENSORS
 from .soil import BucketGeometry, PileGeometry, get_soil_model
 from .task import RewardWeights, ScoopTask, reward_parts
 
@@ -166,6 +166,8 @@ class PileLoadingEnv(gym.Env):
         self.observation_space = spaces.Dict(
             {s.name: spaces.Box(s.low, s.high, shape=(1,), dtype=np.float32) for s in SENSORS}
         )
+        self.sensor_units = {s.name: s.unit for s in SENSORS}  # for dataset writers
+        self.control_names = CONTROL_NAMES
         self._noise_std = _noise_std(sensor_noise)
         self._low = np.array([s.low for s in SENSORS])
         self._high = np.array([s.high for s in SENSORS])

@@ -1,5 +1,21 @@
 """Structured (typed) configs behind the YAML under conf/; see schema.py."""
 
-from .schema import EnvConfig, OperatorConfig, ScoopConfig, register_configs
+from .schema import (
+    BuildDatasetConfig,
+    DatasetConfig,
+    EnvConfig,
+    OperatorConfig,
+    RecordConfig,
+    ScoopConfig,
+    register_configs,
+)
 
-__all__ = ["EnvConfig", "OperatorConfig", "ScoopConfig", "register_configs"]
+__all__ = [
+    "BuildDatasetConfig",
+    "DatasetConfig",
+    "EnvConfig",
+    "OperatorConfig",
+    "RecordConfig",
+    "ScoopConfig",
+    "register_configs",
+]

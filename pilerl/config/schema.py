@@ -54,6 +54,7 @@ class OperatorConfig:
     push_throttle: float = 0.7
     trigger_pressure_mpa: float = 16.0
     trigger_sensor: str = "drive_pressure"
+    trigger_hold_s: float = 0.15
     reaction_delay_s: float = 0.2
     lift: float = 0.7
     curl: float = 0.8
@@ -93,8 +94,61 @@ class ScoopConfig:
     output_dir: str = MISSING  # set by the primary YAML to Hydra's run directory
 
 
+@dataclass
+class RecordConfig:
+    """The record recipe: scripted demonstrations into a dataset directory.
+
+    Attributes:
+        env: simulator arguments; ``env.control_hz`` is replaced by ``record_hz``.
+        n_episodes: episodes to record (the paper: 72 summer demonstrations).
+        seed: base seed (episode i: env seed ``seed * 100000 + i``, its own style).
+        record_hz: sampling (= control) rate of the recording [Hz] (the paper: 500).
+        trigger_sensor: the operators' impact cue (``drive_pressure`` or
+            ``telescope_pressure``; see ``pilerl.operators.sample_style``).
+        mistake_rate: share of operators who raise the boom too early.
+        workers: recording processes.
+        out_dir: dataset directory; an existing one is resumed.
+    """
+
+    env: EnvConfig = field(default_factory=EnvConfig)
+    n_episodes: int = 72
+    seed: int = 0
+    record_hz: float = 500.0
+    trigger_sensor: str = "drive_pressure"
+    mistake_rate: float = 0.18
+    workers: int = 2
+    out_dir: str = MISSING
+
+
+@dataclass
+class DatasetConfig:
+    """A curation rule (the ``dataset`` config group).
+
+    Attributes:
+        name: ``d_i`` or ``d_ii`` (or your own).
+        successful_only: keep only episodes that ended at least half full.
+        rate_hz: down-sample to this rate [Hz]; ``None`` keeps the recorded rate.
+    """
+
+    name: str = MISSING
+    successful_only: bool = False
+    rate_hz: float | None = None
+
+
+@dataclass
+class BuildDatasetConfig:
+    """The build_dataset recipe: a curated dataset from recorded demonstrations."""
+
+    dataset: DatasetConfig = field(default_factory=DatasetConfig)
+    source: str = MISSING
+    out_dir: str = MISSING
+
+
 def register_configs() -> None:
     """Put the schemas in Hydra's ConfigStore (idempotent)."""
     store = ConfigStore.instance()
     store.store(name="scoop_schema", node=ScoopConfig)
+    store.store(name="record_schema", node=RecordConfig)
+    store.store(name="build_dataset_schema", node=BuildDatasetConfig)
     store.store(group="env", name="env_schema", node=EnvConfig)
+    store.store(group="dataset", name="dataset_schema", node=DatasetConfig)

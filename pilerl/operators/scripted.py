@@ -34,6 +34,9 @@ class OperatorStyle:
         push_throttle: throttle of a push during filling.
         trigger_pressure_mpa: reading of ``trigger_sensor`` that signals impact [MPa].
         trigger_sensor: ``drive_pressure`` or ``telescope_pressure``.
+        trigger_hold_s: how long the reading must stay above the threshold before the
+            operator reacts [s]: people do not react to a 40 ms pressure blip (such as the
+            HST's start-up peak), and this keeps the behaviour independent of the rate.
         reaction_delay_s: time from impact to the first filling action [s].
         lift: boom valve opening while lifting [0, 1].
         curl: bucket valve opening while curling [0, 1].
@@ -53,6 +56,7 @@ class OperatorStyle:
     push_throttle: float = 0.7
     trigger_pressure_mpa: float = 16.0
     trigger_sensor: str = "drive_pressure"
+    trigger_hold_s: float = 0.15
     reaction_delay_s: float = 0.2
     lift: float = 0.7
     curl: float = 0.8
@@ -83,7 +87,7 @@ TRIGGER_RANGES_MPA = {"drive_pressure": (13.0, 20.0), "telescope_pressure": (1.5
 def sample_style(
     rng: np.random.Generator,
     *,
-    mistake_rate: float = 0.12,
+    mistake_rate: float = 0.18,
     overlap_rate: float = 0.6,
     trigger_sensor: str = "drive_pressure",
 ) -> OperatorStyle:
@@ -136,6 +140,7 @@ class ScriptedScoopOperator:
         self._time_s = 0.0
         self._phase_time_s = 0.0
         self._stalled_cycle = -1
+        self._above_trigger_s = 0.0
 
     def _enter(self, phase: str) -> None:
         self.phase, self._phase_time_s = phase, 0.0
@@ -145,7 +150,9 @@ class ScriptedScoopOperator:
         st = self.style
         reading = {k: float(np.asarray(v).reshape(-1)[0]) for k, v in sensors.items()}
         if self.phase == "approach":
-            impact = reading[st.trigger_sensor] >= st.trigger_pressure_mpa
+            above = reading[st.trigger_sensor] >= st.trigger_pressure_mpa
+            self._above_trigger_s = self._above_trigger_s + self.dt if above else 0.0
+            impact = self._above_trigger_s >= st.trigger_hold_s - 1e-9
             early = st.early_boom_rise_s is not None and self._time_s >= st.early_boom_rise_s
             if impact or early:
                 self._enter("fill")

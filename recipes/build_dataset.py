@@ -1,0 +1,36 @@
+"""Curate recorded demonstrations into a training dataset (D_I or D_II) with statistics.
+
+python recipes/build_dataset.py dataset=d_ii source=data/demos/summer
+"""
+
+from __future__ import annotations
+
+import logging
+
+import hydra
+from omegaconf import DictConfig, OmegaConf
+
+from pilerl.config import BuildDatasetConfig, register_configs
+from pilerl.data import EpisodeStore, build_dataset
+
+log = logging.getLogger(__name__)
+register_configs()
+
+
+@hydra.main(config_path="../conf", config_name="build_dataset", version_base="1.3")
+def main(cfg: DictConfig) -> None:
+    config: BuildDatasetConfig = OmegaConf.to_object(cfg)
+    source = EpisodeStore.open(config.source)
+    rule = config.dataset
+    dataset = build_dataset(
+        source,
+        config.out_dir,
+        successful_only=rule.successful_only,
+        rate_hz=rule.rate_hz,
+        description=f"{rule.name} from {config.source}",
+    )
+    log.info("%s: %d episodes, %d samples", config.out_dir, len(dataset), dataset.n_samples)
+
+
+if __name__ == "__main__":
+    main()
