@@ -25,8 +25,18 @@ def compose_config(name: str, overrides: list[str] | None = None):
 
 @pytest.mark.parametrize("name", PRIMARY)
 def test_every_primary_config_composes(name):
-    cfg = compose_config(name)
-    assert cfg.env.simulator == "pile_loader"
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose(config_name=name)  # without Hydra's node: its keys are set at launch
+    assert not OmegaConf.missing_keys(cfg), f"{name}: missing {OmegaConf.missing_keys(cfg)}"
+    if "env" in cfg:
+        assert cfg.env.simulator == "pile_loader"
+
+
+@pytest.mark.parametrize("choice", ["d_i", "d_ii"])
+def test_dataset_group_choices_compose(choice):
+    cfg = compose_config("build_dataset", [f"dataset={choice}"])
+    assert cfg.dataset.name == choice
+    assert cfg.dataset.successful_only == (choice == "d_ii")
 
 
 def test_scoop_config_becomes_the_typed_schema():

@@ -84,3 +84,21 @@ def test_record_recipe_rejects_bad_parameters_before_writing(tmp_path):
     )
     assert result.returncode != 0 and "unknown condition 'monsoon'" in result.stderr
     assert not (tmp_path / "demos").exists()
+
+
+def test_teleop_recipe_says_it_needs_a_display(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    result = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "recipes" / "teleop.py"),
+            f"hydra.run.dir={tmp_path}",
+            f"out_dir={tmp_path / 'demos'}",
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert result.returncode != 0 and "teleop needs a display" in result.stderr
+    assert not (tmp_path / "demos").exists()

@@ -7,6 +7,7 @@ from .schema import (
     OperatorConfig,
     RecordConfig,
     ScoopConfig,
+    TeleopConfig,
     register_configs,
 )
 
@@ -17,5 +18,6 @@ __all__ = [
     "OperatorConfig",
     "RecordConfig",
     "ScoopConfig",
+    "TeleopConfig",
     "register_configs",
 ]

@@ -144,11 +144,23 @@ class BuildDatasetConfig:
     out_dir: str = MISSING
 
 
+@dataclass
+class TeleopConfig:
+    """The teleop recipe: keyboard-driven episodes recorded like scripted ones."""
+
+    env: EnvConfig = field(default_factory=EnvConfig)
+    episodes: int = 1
+    seed: int = 0
+    operator_id: str = "person-1"
+    out_dir: str = MISSING
+
+
 def register_configs() -> None:
     """Put the schemas in Hydra's ConfigStore (idempotent)."""
     store = ConfigStore.instance()
     store.store(name="scoop_schema", node=ScoopConfig)
     store.store(name="record_schema", node=RecordConfig)
     store.store(name="build_dataset_schema", node=BuildDatasetConfig)
+    store.store(name="teleop_schema", node=TeleopConfig)
     store.store(group="env", name="env_schema", node=EnvConfig)
     store.store(group="dataset", name="dataset_schema", node=DatasetConfig)
