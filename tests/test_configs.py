@@ -23,11 +23,22 @@ def compose_config(name: str, overrides: list[str] | None = None):
         return compose(config_name=name, overrides=overrides or [], return_hydra_config=True)
 
 
+def _leaves(node, prefix=""):
+    if isinstance(node, dict):
+        for key, value in node.items():
+            yield from _leaves(value, f"{prefix}{key}.")
+    else:
+        yield prefix.rstrip("."), node
+
+
 @pytest.mark.parametrize("name", PRIMARY)
 def test_every_primary_config_composes(name):
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = compose(config_name=name)  # without Hydra's node: its keys are set at launch
-    assert not OmegaConf.missing_keys(cfg), f"{name}: missing {OmegaConf.missing_keys(cfg)}"
+    unset = [
+        key for key, value in _leaves(OmegaConf.to_container(cfg, resolve=False)) if value == "???"
+    ]
+    assert not unset, f"{name}: mandatory values left unset: {unset}"
     if "env" in cfg:
         assert cfg.env.simulator == "pile_loader"
 
