@@ -250,3 +250,31 @@ def test_recording_resumes_where_it_stopped(tmp_path):
     assert [m.id for m in new] == [2] and len(store) == 3
     assert all(torch.equal(store.load(i)["drive_pressure"], first_two[i]) for i in range(2))
     assert np.isfinite(store.load(2)["drive_pressure"].numpy()).all()
+
+
+def test_extend_is_all_or_nothing(tmp_path, monkeypatch):
+    store = make_store(tmp_path / "ds", [(synthetic_episode(8), True, 100.0)])
+    real_memmap = TensorDict.memmap_
+    calls = []
+
+    def fail_on_second(self, prefix=None, **kwargs):
+        calls.append(prefix)
+        if len(calls) == 2:
+            raise OSError("disk full")
+        return real_memmap(self, prefix=prefix, **kwargs)
+
+    monkeypatch.setattr(TensorDict, "memmap_", fail_on_second)
+    batch = [(synthetic_episode(5), EpisodeMeta(rate_hz=100.0)) for _ in range(3)]
+    with pytest.raises(OSError, match="disk full"):
+        store.extend(batch)
+    monkeypatch.setattr(TensorDict, "memmap_", real_memmap)
+    assert len(EpisodeStore.open(tmp_path / "ds")) == 1 and len(store) == 1
+    assert [p.name for p in (tmp_path / "ds" / "episodes").iterdir()] == ["ep_000000"]
+
+
+def test_reopening_with_other_sensors_is_refused(tmp_path):
+    make_store(tmp_path / "ds", [(synthetic_episode(8), True, 100.0)])
+    with pytest.raises(SchemaError, match="existing dataset has sensors"):
+        EpisodeStore.create(
+            tmp_path / "ds", sensors={"boom_angle": "deg"}, controls=CONTROLS, exist_ok=True
+        )

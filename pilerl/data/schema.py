@@ -102,7 +102,7 @@ def make_episode(
         trunc[-1] = truncated
         done[-1] = terminated or truncated
     reward = (
-        torch.full((n, 1), math.nan)
+        torch.full((n, 1), math.nan, dtype=torch.float32)
         if rewards is None
         else torch.as_tensor(rewards, dtype=torch.float32).reshape(n, 1)
     )
@@ -149,7 +149,7 @@ def required_keys(sensor_names: Sequence[str]) -> list:
 def validate_episode(
     td: TensorDict, sensor_names: Sequence[str], *, action_dim: int, where: str = "episode"
 ) -> None:
-    """Raise ``SchemaError`` naming the key and row if ``td`` breaks the schema."""
+    """Raise ``SchemaError`` naming the key and row (0-based) if ``td`` breaks the schema."""
     if td.batch_dims != 1 or td.batch_size[0] == 0:
         raise SchemaError(f"{where}: expected a non-empty 1-D batch, got {tuple(td.batch_size)}")
     required = required_keys(sensor_names)
@@ -157,6 +157,12 @@ def validate_episode(
     missing = [k for k in required if k not in keys]
     if missing:
         raise SchemaError(f"{where}: missing keys {missing}")
+    for name in sensor_names:
+        if tuple(td[name].shape) != (td.batch_size[0], 1):
+            raise SchemaError(
+                f"{where}: sensor {name!r} has shape {tuple(td[name].shape)}, "
+                f"expected ({td.batch_size[0]}, 1)"
+            )
     if td["action"].shape[-1] != action_dim:
         raise SchemaError(
             f"{where}: action has {td['action'].shape[-1]} controls, expected {action_dim}"
@@ -171,6 +177,9 @@ def validate_episode(
         row = int((td["action"].abs() > 1.0 + 1e-6).any(-1).nonzero()[0])
         raise SchemaError(f"{where}: action outside [-1, 1] at row {row}")
     time_s = td["time_s"]
+    if not torch.isfinite(time_s).all():
+        row = int((~torch.isfinite(time_s)).nonzero()[0])
+        raise SchemaError(f"{where}: non-finite time_s at row {row}")
     if td.batch_size[0] > 1 and not (time_s[1:] > time_s[:-1]).all():
         row = int((time_s[1:] <= time_s[:-1]).nonzero()[0]) + 1
         raise SchemaError(f"{where}: time_s not strictly increasing at row {row}")

@@ -64,7 +64,13 @@ class EpisodeStore:
         if (root / INDEX).exists():
             if not exist_ok:
                 raise FileExistsError(f"{root}: a dataset already exists here")
-            return cls.open(root, writable=True)
+            existing = cls.open(root, writable=True)
+            if existing.sensors != dict(sensors) or existing.controls != list(controls):
+                raise SchemaError(
+                    f"{root}: existing dataset has sensors {existing.sensors} and controls "
+                    f"{existing.controls}, not {dict(sensors)} and {list(controls)}"
+                )
+            return existing
         (root / EPISODES).mkdir(parents=True, exist_ok=True)
         index = {
             "schema_version": SCHEMA_VERSION,
@@ -140,24 +146,51 @@ class EpisodeStore:
     # ------------------------------------------------------------------ write
     def append(self, episode: TensorDict, meta: EpisodeMeta) -> EpisodeMeta:
         """Validate and add one episode atomically; returns its metadata with id set."""
-        episode_id = len(self)
-        where = f"{self.root} episode {episode_id}"
-        validate_episode(episode, list(self.sensors), action_dim=len(self.controls), where=where)
-        episode = episode.clone()
-        episode["episode"] = torch.full_like(episode["episode"], episode_id)
-        meta.id, meta.n_samples = episode_id, int(episode.batch_size[0])
-        final = self._episode_dir(episode_id)
-        if final.exists():
-            raise FileExistsError(f"{final}: exists but is not in the index; remove it")
-        tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=self.root / EPISODES))
+        return self.extend([(episode, meta)])[0]
+
+    def extend(self, episodes: Sequence[tuple[TensorDict, EpisodeMeta]]) -> list[EpisodeMeta]:
+        """Validate and add several episodes as one atomic change.
+
+        Every episode is validated before anything is written; the episode directories
+        are written and renamed into place, and the index is updated once at the end. If
+        anything fails, the directories written by this call are removed again and the
+        dataset is as it was.
+        """
+        first_id = len(self)
+        prepared = []
+        for offset, (episode, meta) in enumerate(episodes):
+            episode_id = first_id + offset
+            validate_episode(
+                episode,
+                list(self.sensors),
+                action_dim=len(self.controls),
+                where=f"{self.root} episode {episode_id}",
+            )
+            episode = episode.clone()
+            episode["episode"] = torch.full_like(episode["episode"], episode_id)
+            meta.id, meta.n_samples = episode_id, int(episode.batch_size[0])
+            prepared.append((episode, meta))
+        written: list[Path] = []
         try:
-            episode.memmap_(prefix=tmp)
-            tmp.rename(final)
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
-        self._index["episodes"].append(meta.to_json())
-        self._write_index()
-        return meta
+            for episode, meta in prepared:
+                final = self._episode_dir(meta.id)
+                if final.exists():
+                    raise FileExistsError(f"{final}: exists but is not in the index; remove it")
+                tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=self.root / EPISODES))
+                try:
+                    episode.memmap_(prefix=tmp)
+                    tmp.rename(final)
+                    written.append(final)
+                finally:
+                    shutil.rmtree(tmp, ignore_errors=True)
+            self._index["episodes"].extend(meta.to_json() for _, meta in prepared)
+            self._write_index()
+        except BaseException:
+            del self._index["episodes"][first_id:]
+            for path in written:
+                shutil.rmtree(path, ignore_errors=True)
+            raise
+        return [meta for _, meta in prepared]
 
     # ------------------------------------------------------------------ read
     def load(self, episode_id: int) -> TensorDict:
@@ -196,4 +229,5 @@ class EpisodeStore:
         return self.root / EPISODES / f"ep_{episode_id:06d}"
 
     def _write_index(self) -> None:
-        write_text_atomic(self.root / INDEX, json.dumps(self._index, indent=1))
+        # allow_nan=False: the index stays strict JSON that any reader can parse
+        write_text_atomic(self.root / INDEX, json.dumps(self._index, indent=1, allow_nan=False))
