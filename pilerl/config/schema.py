@@ -115,7 +115,7 @@ class RecordConfig:
     seed: int = 0
     record_hz: float = 500.0
     trigger_sensor: str = "drive_pressure"
-    mistake_rate: float = 0.18
+    mistake_rate: float = 0.28
     workers: int = 2
     out_dir: str = MISSING
 

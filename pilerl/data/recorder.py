@@ -45,7 +45,7 @@ class RecordingPlan:
     n_episodes: int
     seed: int = 0
     trigger_sensor: str = "drive_pressure"
-    mistake_rate: float = 0.18
+    mistake_rate: float = 0.28
 
     def __post_init__(self) -> None:
         if self.n_episodes < 1:

@@ -87,7 +87,7 @@ TRIGGER_RANGES_MPA = {"drive_pressure": (13.0, 20.0), "telescope_pressure": (1.5
 def sample_style(
     rng: np.random.Generator,
     *,
-    mistake_rate: float = 0.18,
+    mistake_rate: float = 0.28,
     overlap_rate: float = 0.6,
     trigger_sensor: str = "drive_pressure",
 ) -> OperatorStyle:
