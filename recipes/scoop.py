@@ -9,7 +9,6 @@ Writes to the Hydra run directory: ``scoop_<condition>.mp4``, ``trace_<condition
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 
 import hydra
@@ -18,7 +17,7 @@ from omegaconf import DictConfig, OmegaConf
 from pilerl.config import ScoopConfig, register_configs
 from pilerl.evaluation import plot_scoop, run_episode, write_mp4
 from pilerl.evaluation.scoop_report import summarize, write_scoop_report, write_trace_csv
-from pilerl.operators import OperatorStyle, ScriptedScoopOperator
+from pilerl.operators import ScriptedScoopOperator
 from pilerl.sim import make_gym_env
 
 log = logging.getLogger(__name__)
@@ -28,7 +27,7 @@ register_configs()
 @hydra.main(config_path="../conf", config_name="scoop", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     config: ScoopConfig = OmegaConf.to_object(cfg)
-    style = OperatorStyle(**dataclasses.asdict(config.operator))
+    style = config.operator
     out_dir = config.output_dir
     episodes, summaries, videos = {}, {}, []
 

@@ -12,6 +12,8 @@ from dataclasses import asdict, dataclass, field
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
+from pilerl.operators import OperatorStyle
+
 
 @dataclass
 class EnvConfig:
@@ -47,35 +49,12 @@ class EnvConfig:
 
 
 @dataclass
-class OperatorConfig:
-    """Scripted operator style; fields mirror ``pilerl.operators.OperatorStyle``."""
-
-    approach_throttle: float = 0.5
-    push_throttle: float = 0.7
-    trigger_pressure_mpa: float = 16.0
-    trigger_sensor: str = "drive_pressure"
-    trigger_hold_s: float = 0.15
-    reaction_delay_s: float = 0.2
-    lift: float = 0.7
-    curl: float = 0.8
-    push_s: float = 0.5
-    lift_s: float = 0.5
-    curl_s: float = 0.5
-    overlap: bool = False
-    boom_stall_pressure_mpa: float = 18.0
-    fill_boom_angle_rad: float = 0.0
-    finish_curl_angle_rad: float = 1.2
-    early_boom_rise_s: float | None = None
-    max_fill_seconds: float = 12.0
-
-
-@dataclass
 class ScoopConfig:
     """The scoop recipe: scripted scoops recorded, rendered and reported per condition.
 
     Attributes:
         env: simulator arguments; ``env.condition`` is replaced by each of ``conditions``.
-        operator: scripted operator style.
+        operator: scripted operator style (``pilerl.operators.OperatorStyle``).
         conditions: conditions to scoop in, one episode each.
         seed: episode seed (start distance and approach angle follow from it).
         video: write an mp4 per condition.
@@ -84,7 +63,7 @@ class ScoopConfig:
     """
 
     env: EnvConfig = field(default_factory=EnvConfig)
-    operator: OperatorConfig = field(default_factory=OperatorConfig)
+    operator: OperatorStyle = field(default_factory=OperatorStyle)
     conditions: list[str] = field(default_factory=lambda: ["summer", "winter_c"])
     seed: int = 0
     video: bool = True

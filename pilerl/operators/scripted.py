@@ -25,9 +25,9 @@ import numpy as np
 PHASES = ("approach", "fill", "finish")
 
 
-@dataclass(frozen=True)
+@dataclass
 class OperatorStyle:
-    """How one operator drives.
+    """How one operator drives (also the ``operator`` config schema of the recipes).
 
     Attributes:
         approach_throttle: throttle while approaching [-1, 1].
