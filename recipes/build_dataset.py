@@ -8,10 +8,13 @@ from __future__ import annotations
 import logging
 
 import hydra
+from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import BuildDatasetConfig, register_configs
 from pilerl.data import EpisodeStore, build_dataset
+from pilerl.runtime import limit_threads
+from pilerl.sweeps import mark_done
 
 log = logging.getLogger(__name__)
 register_configs()
@@ -19,6 +22,7 @@ register_configs()
 
 @hydra.main(config_path="../conf", config_name="build_dataset", version_base="1.3")
 def main(cfg: DictConfig) -> None:
+    limit_threads()
     config: BuildDatasetConfig = OmegaConf.to_object(cfg)
     source = EpisodeStore.open(config.source)
     rule = config.dataset
@@ -30,6 +34,10 @@ def main(cfg: DictConfig) -> None:
         description=f"{rule.name} from {config.source}",
     )
     log.info("%s: %d episodes, %d samples", config.out_dir, len(dataset), dataset.n_samples)
+    mark_done(
+        HydraConfig.get().runtime.output_dir,
+        {"episodes": len(dataset), "samples": dataset.n_samples},
+    )
 
 
 if __name__ == "__main__":

@@ -11,11 +11,14 @@ from __future__ import annotations
 import logging
 
 import hydra
+from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import RecordConfig, register_configs
 from pilerl.data import EpisodeStore, RecordingPlan, record_demonstrations
+from pilerl.runtime import limit_threads
 from pilerl.sim import make_gym_env
+from pilerl.sweeps import mark_done
 
 log = logging.getLogger(__name__)
 register_configs()
@@ -23,6 +26,7 @@ register_configs()
 
 @hydra.main(config_path="../conf", config_name="record", version_base="1.3")
 def main(cfg: DictConfig) -> None:
+    limit_threads()
     config: RecordConfig = OmegaConf.to_object(cfg)
     env_kwargs = config.env.make_kwargs(control_hz=config.record_hz)
 
@@ -54,6 +58,14 @@ def main(cfg: DictConfig) -> None:
         len(store),
         store.n_samples,
         successes,
+    )
+    mark_done(
+        HydraConfig.get().runtime.output_dir,
+        {
+            "episodes": len(store),
+            "samples": store.n_samples,
+            "success_rate": successes / len(store),
+        },
     )
 
 

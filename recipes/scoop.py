@@ -18,7 +18,9 @@ from pilerl.config import ScoopConfig, register_configs
 from pilerl.evaluation import plot_scoop, run_episode, write_mp4
 from pilerl.evaluation.scoop_report import summarize, write_scoop_report, write_trace_csv
 from pilerl.operators import ScriptedScoopOperator
+from pilerl.runtime import limit_threads
 from pilerl.sim import make_gym_env
+from pilerl.sweeps import is_done, mark_done
 
 log = logging.getLogger(__name__)
 register_configs()
@@ -26,9 +28,13 @@ register_configs()
 
 @hydra.main(config_path="../conf", config_name="scoop", version_base="1.3")
 def main(cfg: DictConfig) -> None:
+    limit_threads()
     config: ScoopConfig = OmegaConf.to_object(cfg)
     style = config.operator
     out_dir = config.output_dir
+    if is_done(out_dir):
+        log.info("%s already finished: skipping (delete done.json to run again)", out_dir)
+        return
     episodes, summaries, videos = {}, {}, []
 
     # --- build every env first: a bad condition or parameter fails before any work
@@ -68,6 +74,15 @@ def main(cfg: DictConfig) -> None:
         summaries, out_dir, seed=config.seed, figures=["scoop_signals.png"], videos=videos
     )
     log.info("report: %s", report)
+    mark_done(
+        out_dir,
+        {
+            f"{condition}_{key}": float(value)
+            for condition, summary in summaries.items()
+            for key, value in summary.items()
+            if key in ("fill_fraction", "success", "duration_s", "return", "spilled_kg")
+        },
+    )
 
 
 if __name__ == "__main__":

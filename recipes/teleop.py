@@ -20,6 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 from pilerl.config import TeleopConfig, register_configs
 from pilerl.data import EpisodeMeta, EpisodeStore, record_episode
 from pilerl.operators.keyboard import KeyboardOperator
+from pilerl.runtime import limit_threads
 from pilerl.sim import make_gym_env
 
 log = logging.getLogger(__name__)
@@ -28,6 +29,7 @@ register_configs()
 
 @hydra.main(config_path="../conf", config_name="teleop", version_base="1.3")
 def main(cfg: DictConfig) -> None:
+    limit_threads()
     config: TeleopConfig = OmegaConf.to_object(cfg)
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         raise SystemExit(

@@ -1,0 +1,177 @@
+"""Summarise a Hydra multirun directory: one table, grouped by the swept keys.
+
+Each job directory holds ``.hydra/overrides.yaml`` (its overrides) and, once finished,
+``metrics.json`` (what was measured). Jobs are grouped by the swept keys (overrides whose
+value differs between jobs) except the averaged ones (``seed`` by default); each numeric
+metric is reported as mean, std and the number of jobs.
+
+    python -m pilerl.sweeps.summary multirun/my_sweep                # CSV + Markdown + PNG
+    python -m pilerl.sweeps.summary multirun/my_sweep --metric summer_fill_fraction
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import math
+import statistics
+import sys
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from pilerl.io import atomic_path, write_text_atomic
+
+from .completion import METRICS_FILE
+
+
+@dataclass
+class Job:
+    path: Path
+    overrides: dict[str, str]
+    metrics: dict[str, float] | None  # None: not finished
+
+
+def load_jobs(sweep_dir: str | Path) -> list[Job]:
+    """Every job directory under ``sweep_dir`` (the ones with ``.hydra/overrides.yaml``)."""
+    sweep_dir = Path(sweep_dir)
+    if not sweep_dir.is_dir():
+        raise FileNotFoundError(f"{sweep_dir}: no such sweep directory")
+    jobs = []
+    for overrides_file in sorted(sweep_dir.rglob(".hydra/overrides.yaml")):
+        job_dir = overrides_file.parent.parent
+        try:
+            items = yaml.safe_load(overrides_file.read_text()) or []
+        except yaml.YAMLError as error:
+            raise ValueError(f"{overrides_file}: unreadable overrides ({error})") from None
+        overrides = {}
+        for item in items:
+            key, _, value = str(item).partition("=")
+            if not key.startswith(("hydra.", "+hydra.")):
+                overrides[key.lstrip("+~")] = value
+        metrics_file = job_dir / METRICS_FILE
+        metrics = None
+        if metrics_file.exists():
+            try:
+                metrics = json.loads(metrics_file.read_text())
+            except json.JSONDecodeError as error:
+                raise ValueError(f"{metrics_file}: corrupt metrics ({error})") from None
+        jobs.append(Job(job_dir, overrides, metrics))
+    if not jobs:
+        raise ValueError(f"{sweep_dir}: no Hydra job directories (.hydra/overrides.yaml) found")
+    return jobs
+
+
+def summarize_sweep(
+    sweep_dir: str | Path,
+    *,
+    average_over: tuple[str, ...] = ("seed",),
+    out_dir: str | Path | None = None,
+    plot_metric: str | None = None,
+) -> list[dict]:
+    """Group finished jobs by swept keys and write ``sweep_summary.{csv,md,png}``.
+
+    Returns one row per group: the swept values, ``n_jobs``, and for every numeric metric
+    ``<metric>_mean`` and ``<metric>_std`` (std is 0 for a single job).
+    """
+    jobs = load_jobs(sweep_dir)
+    finished = [j for j in jobs if j.metrics is not None]
+    if not finished:
+        raise ValueError(f"{sweep_dir}: {len(jobs)} jobs, none finished ({METRICS_FILE})")
+    # swept keys: overrides whose value differs between jobs (fixed ones are not groups)
+    candidates = {k for j in finished for k in j.overrides if k not in average_over}
+    group_keys = sorted(
+        k for k in candidates if len({j.overrides.get(k, "") for j in finished}) > 1
+    )
+    groups: dict[tuple, list[Job]] = defaultdict(list)
+    for job in finished:
+        groups[tuple(job.overrides.get(k, "") for k in group_keys)].append(job)
+    metric_names = sorted(
+        {k for j in finished for k, v in j.metrics.items() if isinstance(v, int | float)}
+    )
+    rows = []
+    for values, members in sorted(groups.items()):
+        row: dict = dict(zip(group_keys, values, strict=True))
+        row["n_jobs"] = len(members)
+        for name in metric_names:
+            samples = [float(j.metrics[name]) for j in members if name in j.metrics]
+            row[f"{name}_mean"] = statistics.fmean(samples) if samples else math.nan
+            row[f"{name}_std"] = statistics.stdev(samples) if len(samples) > 1 else 0.0
+        rows.append(row)
+    out_dir = Path(out_dir or sweep_dir)
+    columns = list(rows[0])
+    _write_csv(out_dir / "sweep_summary.csv", rows, columns)
+    _write_markdown(out_dir / "sweep_summary.md", rows, columns, len(jobs), len(finished))
+    metric = plot_metric or (metric_names[0] if metric_names else None)
+    if metric:
+        _plot(out_dir / "sweep_summary.png", rows, group_keys, metric)
+    return rows
+
+
+def _write_csv(path: Path, rows: list[dict], columns: list[str]) -> None:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=columns)
+    writer.writeheader()
+    writer.writerows(rows)
+    write_text_atomic(path, buffer.getvalue())
+
+
+def _write_markdown(
+    path: Path, rows: list[dict], columns: list[str], n_jobs: int, n_finished: int
+) -> None:
+    def cell(value) -> str:
+        return f"{value:.4g}" if isinstance(value, float) else str(value)
+
+    lines = [
+        f"# Sweep summary ({n_finished} of {n_jobs} jobs finished)",
+        "",
+        "| " + " | ".join(columns) + " |",
+        "|" + "---|" * len(columns),
+    ]
+    lines += ["| " + " | ".join(cell(row[c]) for c in columns) + " |" for row in rows]
+    write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+def _plot(path: Path, rows: list[dict], group_keys: list[str], metric: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    labels = [", ".join(f"{k}={row[k]}" for k in group_keys) or "all" for row in rows]
+    means = [row.get(f"{metric}_mean", math.nan) for row in rows]
+    stds = [row.get(f"{metric}_std", 0.0) for row in rows]
+    fig, ax = plt.subplots(figsize=(max(4, 1.2 * len(rows)), 4))
+    ax.bar(range(len(rows)), means, yerr=stds, capsize=4, color="tab:blue", alpha=0.8)
+    ax.set_xticks(range(len(rows)), labels, rotation=30, ha="right", fontsize=8)
+    ax.set_ylabel(f"{metric} (mean ± std over jobs)")
+    ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="Summarise a Hydra multirun directory.")
+    parser.add_argument("sweep_dir")
+    parser.add_argument("--metric", help="metric to plot (default: the first)")
+    parser.add_argument("--average-over", nargs="*", default=["seed"])
+    args = parser.parse_args(argv)
+    try:
+        rows = summarize_sweep(
+            args.sweep_dir, average_over=tuple(args.average_over), plot_metric=args.metric
+        )
+    except (FileNotFoundError, ValueError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    print(f"{len(rows)} groups -> {Path(args.sweep_dir) / 'sweep_summary.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,104 @@
+"""Sweeps: summary aggregation, skipping finished jobs, multirun with the local launcher."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pilerl.sweeps import is_done, mark_done, summarize_sweep
+from pilerl.sweeps.summary import main as summary_main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def fake_job(root: Path, number: int, overrides: list[str], metrics: dict | None) -> None:
+    job = root / str(number)
+    (job / ".hydra").mkdir(parents=True)
+    (job / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(overrides))
+    if metrics is not None:
+        mark_done(job, metrics)
+
+
+def test_summary_groups_by_swept_keys_and_averages_seeds(tmp_path):
+    fixed = "env.condition=winter_c"  # the same in every job: not a group key
+    fake_job(tmp_path, 0, [fixed, "policy=dannet", "seed=0"], {"success": 1.0, "fill": 0.9})
+    fake_job(tmp_path, 1, [fixed, "policy=dannet", "seed=1"], {"success": 0.0, "fill": 0.5})
+    fake_job(tmp_path, 2, [fixed, "policy=nnet", "seed=0"], {"success": 0.0, "fill": 0.2})
+    fake_job(tmp_path, 3, [fixed, "policy=nnet", "seed=1", "hydra.job.chdir=false"], None)
+    rows = summarize_sweep(tmp_path)
+    assert [(r["policy"], r["n_jobs"]) for r in rows] == [("dannet", 2), ("nnet", 1)]
+    assert rows[0]["fill_mean"] == pytest.approx(0.7)
+    assert rows[0]["fill_std"] == pytest.approx(0.28284271, rel=1e-6)
+    assert rows[0]["success_mean"] == pytest.approx(0.5)
+    assert rows[1]["fill_mean"] == pytest.approx(0.2) and rows[1]["fill_std"] == 0.0
+    table = (tmp_path / "sweep_summary.md").read_text()
+    assert "3 of 4 jobs finished" in table and "| dannet | 2 |" in table
+    assert (tmp_path / "sweep_summary.csv").read_text().startswith("policy,n_jobs,")
+    assert (tmp_path / "sweep_summary.png").stat().st_size > 0
+
+
+def test_summary_errors_are_clear(tmp_path, capsys):
+    assert summary_main([str(tmp_path / "nowhere")]) == 2
+    assert "no such sweep directory" in capsys.readouterr().err
+    assert summary_main([str(tmp_path)]) == 2
+    assert "no Hydra job directories" in capsys.readouterr().err
+    fake_job(tmp_path, 0, ["seed=0"], None)
+    assert summary_main([str(tmp_path)]) == 2
+    assert "none finished" in capsys.readouterr().err
+
+
+def test_metrics_must_be_finite_scalars(tmp_path):
+    with pytest.raises(ValueError, match="finite scalars"):
+        mark_done(tmp_path, {"loss": float("nan")})
+    assert not is_done(tmp_path)
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MUJOCO_GL": "egl"}
+    return subprocess.run(
+        [sys.executable, *args], capture_output=True, text=True, env=env, timeout=600, cwd=ROOT
+    )
+
+
+SCOOP = [
+    "recipes/scoop.py",
+    "video=false",
+    "conditions=[summer]",
+    "env.start_distance_range_m=[1.0,1.0]",
+]
+
+
+def test_a_finished_job_is_skipped_when_run_again(tmp_path):
+    first = run(*SCOOP, f"hydra.run.dir={tmp_path}")
+    assert first.returncode == 0, first.stderr[-2000:]
+    report_time = (tmp_path / "report.md").stat().st_mtime_ns
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["summer_success"] == 1.0
+    again = run(*SCOOP, f"hydra.run.dir={tmp_path}")
+    assert again.returncode == 0 and "already finished: skipping" in again.stdout + again.stderr
+    assert (tmp_path / "report.md").stat().st_mtime_ns == report_time
+
+
+def test_multirun_with_the_local_parallel_launcher_then_summary(tmp_path):
+    result = run(
+        SCOOP[0],
+        "--multirun",
+        *SCOOP[1:],
+        "hydra/launcher=local_parallel",
+        "seed=0,1",
+        "operator.approach_throttle=0.4,0.6",
+        f"hydra.sweep.dir={tmp_path}",
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    done = sorted(p.parent.name for p in tmp_path.glob("*/done.json"))
+    assert done == ["0", "1", "2", "3"]
+    summary = run("-m", "pilerl.sweeps.summary", str(tmp_path), "--metric", "summer_fill_fraction")
+    assert summary.returncode == 0, summary.stderr
+    rows = (tmp_path / "sweep_summary.csv").read_text().splitlines()
+    assert rows[0].startswith("operator.approach_throttle,n_jobs,") and len(rows) == 3
