@@ -205,8 +205,10 @@ class Machine:
 
     def heading(self) -> np.ndarray:
         """Unit horizontal forward direction of the front frame (world x, y)."""
-        x_axis = self.data.xmat[self.front_frame_body].reshape(3, 3)[:2, 0]
-        return x_axis / max(np.linalg.norm(x_axis), 1e-9)
+        xmat = self.data.xmat[self.front_frame_body]  # row-major 3x3: x axis = column 0
+        x, y = float(xmat[0]), float(xmat[3])
+        norm = max(math.hypot(x, y), 1e-9)
+        return np.array([x / norm, y / norm])
 
     def frame_tilt(self) -> float:
         """Tilt of the front frame from upright [rad] (roll and pitch together)."""

@@ -122,7 +122,9 @@ class HeightfieldSoil(SoilModel):
         self._holding_table = np.array(
             [self.bucket.holding_volume_m3(p, self.repose_angle_rad) for p in self._pitch_table]
         )
-        self._edge_offsets = np.linspace(-0.45, 0.45, EDGE_SAMPLES) * self.bucket.width_m
+        self._edge_offsets_list = (
+            np.linspace(-0.45, 0.45, EDGE_SAMPLES) * self.bucket.width_m
+        ).tolist()
         self.heights = np.zeros((self.nrow, self.ncol))
 
     def reset(self, rng: np.random.Generator) -> None:
@@ -217,9 +219,12 @@ class HeightfieldSoil(SoilModel):
             return
         lateral = np.array([-heading[1], heading[0]])
         half_width = self.bucket.width_m / 2
-        corners = np.concatenate(
+        # footprint: the polygon's extent along the heading, the bucket width across it
+        s_min, s_max = float(s_poly.min()), float(s_poly.max())
+        corners = np.array(
             [
-                hinge[:2] + np.outer(s_poly, heading) + side * half_width * lateral
+                hinge[:2] + s * heading + side * half_width * lateral
+                for s in (s_min, s_max)
                 for side in (-1.0, 1.0)
             ]
         )
@@ -255,18 +260,21 @@ class HeightfieldSoil(SoilModel):
         self.bucket_load_kg += taken_m3 * self.material.density_kg_m3
 
     def _edge_depth(self, edge: np.ndarray, heading: np.ndarray) -> float:
-        """Mean depth [m] of the cutting edge below the pile surface one cell ahead of it."""
-        lateral = np.array([-heading[1], heading[0]])
-        ahead = edge[:2] + heading * self.dx
-        points = ahead + np.outer(self._edge_offsets, lateral)
-        cols = np.rint((points[:, 0] - self._x0) / self.dx).astype(int)
-        rows = np.rint((points[:, 1] - self._y0) / self.dy).astype(int)
-        valid = (cols >= 0) & (cols < self.ncol) & (rows >= 0) & (rows < self.nrow)
-        if not valid.any():
-            return 0.0
-        surface = np.zeros(len(points))
-        surface[valid] = self.heights[rows[valid], cols[valid]]
-        return float(np.clip(surface - edge[2], 0.0, None).mean())
+        """Mean depth [m] of the cutting edge below the pile surface one cell ahead of it.
+
+        Plain Python over the few sample points: NumPy's per-call overhead would dominate.
+        """
+        hx, hy = float(heading[0]), float(heading[1])
+        ahead_x, ahead_y = float(edge[0]) + hx * self.dx, float(edge[1]) + hy * self.dx
+        edge_z = float(edge[2])
+        heights, total, inside = self.heights, 0.0, False
+        for offset in self._edge_offsets_list:
+            col = round((ahead_x - hy * offset - self._x0) / self.dx)
+            row = round((ahead_y + hx * offset - self._y0) / self.dy)
+            if 0 <= col < self.ncol and 0 <= row < self.nrow:
+                inside = True
+                total += max(float(heights[row, col]) - edge_z, 0.0)
+        return total / len(self._edge_offsets_list) if inside else 0.0
 
     # ------------------------------------------------------------------ MuJoCo writes
     def _write_resistance(self, force_n: float, heading: np.ndarray) -> None:
