@@ -87,6 +87,9 @@ def test_start_distance_is_the_gap_between_cutting_edge_and_pile_toe():
     [
         ({"condition": "spring"}, "unknown condition 'spring'"),
         ({"soil": "sand"}, "unknown soil model 'sand'"),
+        ({"soil_options": {"max_particles": 50}}, r"'heightfield' has no option\(s\)"),
+        ({"soil": "particles", "soil_options": {"grain": 1}}, r"its options: \['max_particles'"),
+        ({"soil": "particles", "soil_options": {"max_particles": 3}}, "max_particles"),
         ({"condition_overrides": {"material": {"density_kg_m3": -1.0}}}, "density_kg_m3"),
         ({"physics_hz": 100.0}, "physics_hz"),
         ({"control_hz": 0.0}, "control_hz"),

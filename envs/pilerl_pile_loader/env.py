@@ -39,6 +39,7 @@ See ``PileLoadingEnv.__init__``.
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Mapping, Sequence
 
@@ -64,6 +65,7 @@ class PileLoadingEnv(gym.Env):
     Args:
         condition: preset name, ``summer`` or ``winter_a`` .. ``winter_d``.
         soil: soil model name, ``heightfield`` (fast, default) or ``particles``.
+        soil_options: keyword options of the soil model, e.g. ``{"max_particles": 350}``.
         control_hz: control rate [Hz] (20 default; the real machine ran at 3).
         physics_hz: physics rate [Hz], at least 500.
         soil_hz: soil-model update rate [Hz]: a whole number of updates per control step,
@@ -87,6 +89,7 @@ class PileLoadingEnv(gym.Env):
         condition: str | Condition = "summer",
         *,
         soil: str = "heightfield",
+        soil_options: Mapping[str, object] | None = None,
         control_hz: float = 20.0,
         physics_hz: float = 500.0,
         soil_hz: float = 40.0,
@@ -121,7 +124,10 @@ class PileLoadingEnv(gym.Env):
         # ---- model: machine + soil
         soil_cls = get_soil_model(soil)
         self.soil = soil_cls(
-            self.condition.material, pile or PileGeometry(), bucket or BucketGeometry()
+            self.condition.material,
+            pile or PileGeometry(),
+            bucket or BucketGeometry(),
+            **_checked_soil_options(soil_cls, soil_options),
         )
         spec = load_machine_spec()
         spec.option.timestep = 1.0 / physics_hz
@@ -362,6 +368,23 @@ def _validate_action(action) -> np.ndarray:
         ]
         raise ValueError(f"PileLoadingEnv.step: action has non-finite values in {bad}: {u}")
     return np.clip(u, -1.0, 1.0)
+
+
+def _checked_soil_options(soil_cls: type, options: Mapping[str, object] | None) -> dict:
+    """``options`` if the soil model takes them all as keyword options, else a clear error."""
+    options = dict(options or {})
+    accepted = [
+        name
+        for name, p in inspect.signature(soil_cls.__init__).parameters.items()
+        if p.kind is inspect.Parameter.KEYWORD_ONLY
+    ]
+    unknown = sorted(set(options) - set(accepted))
+    if unknown:
+        raise ValueError(
+            f"soil_options: soil model {soil_cls.name!r} has no option(s) "
+            f"{unknown}; its options: {accepted}"
+        )
+    return options
 
 
 def _noise_std(sensor_noise: float | Mapping[str, float]) -> np.ndarray:

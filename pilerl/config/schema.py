@@ -8,6 +8,7 @@ library arguments once, at their boundary (``EnvConfig.make_kwargs``).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
@@ -23,6 +24,7 @@ class EnvConfig:
         simulator: plugin name (``pile_loader``, ``toy_cart``...).
         condition: condition preset (``summer``, ``winter_a`` .. ``winter_d``).
         soil: soil model (``heightfield`` or ``particles``).
+        soil_options: keyword options of the soil model (e.g. ``{max_particles: 350}``).
         control_hz: control rate [Hz].
         physics_hz: physics rate [Hz] (>= 500).
         sensor_noise: multiplier of the sensors' default noise (0 = noiseless).
@@ -33,6 +35,7 @@ class EnvConfig:
     simulator: str = "pile_loader"
     condition: str = "summer"
     soil: str = "heightfield"
+    soil_options: dict[str, Any] = field(default_factory=dict)
     control_hz: float = 20.0
     physics_hz: float = 500.0
     sensor_noise: float = 1.0

@@ -1,47 +1,61 @@
 """Cross-check soil: a pile of MuJoCo spheres that the bucket pushes and scoops by contact.
 
 No earthmoving equation and no soil actuators: cutting resistance, intake, heaping and
-spill all come out of MuJoCo's contact solver. It is slow next to ``heightfield.py`` and
-coarse, and meant to check the fast model's fills and forces, not to train on.
+spill all come out of MuJoCo's contact solver. It is slower and much coarser than
+``heightfield.py``; it is meant to cross-check the fast model's fills and forces, not to
+train on. Cohesion (``Material.cohesion_pa``) is not represented: the clods are loose.
 
-**Coarse graining.** Gravel grains (2 cm) are replaced by clods of radius
-``PARTICLE_RADIUS_M`` (11 cm, i.e. ~200x the grain volume), so that the digging zone holds a
-few hundred bodies and the simulation runs faster than real time on one core. Each clod's
-mass is its share of the bulk mass of the region it fills (bulk density x pile volume /
-particle count), so masses and fill fractions are in the same units as the heightfield
-model's. The bucket (rated 0.26 m^3) holds about 40 clods.
+**Coarse graining.** Gravel grains (2 cm) are replaced by spheres whose radius grows
+from ``MIN_PARTICLE_RADIUS_M`` until the digging zone holds at most ``max_particles``
+bodies (default ``MAX_PARTICLES``: 11 cm clods, ~170x a grain's volume), so that the model
+runs faster than real time on one core. Each clod's mass is its share of the bulk mass of
+the pile region it fills (bulk density x zone volume / particle count), so masses and fill
+fractions are in the heightfield model's units. The default pile has 111 clods of 17 kg;
+the bucket's rated load is ~26 clods, so fill comes in steps of ~0.04.
 
-**Non-rotating grains.** Each particle moves on three slide joints (x, y, z) instead of a
-free joint. Free spheres roll, and a pile of rolling spheres slumps to ~20 deg whatever
-their sliding friction; real gravel interlocks. Without rotation the sliding friction
-``tan(friction_angle)`` alone holds the face at the angle of repose, with 3 instead of 6
-degrees of freedom per particle and no rolling-friction rows in the contacts.
+**Non-rotating grains.** Each particle moves on three slide joints (x, y, z), not a free
+joint. Free spheres roll, and a pile of rolling spheres slumps to ~20 deg whatever their
+friction; gravel interlocks. Without rotation, sliding friction alone holds the pile, with
+3 instead of 6 degrees of freedom per particle and no rolling-friction rows per contact.
+The particle friction is ``PARTICLE_FRICTION_RATIO x tan(friction angle)``: non-rotating
+spheres in a packing are stronger than their contact friction; with this ratio the
+close-packed face stands at the angle of repose and a collapsing block of them runs out to
+~33 deg for dry gravel's 38 deg (slump test).
 
 **Digging zone.** Only the part of the pile the bucket can reach is made of particles:
-``PARTICLE_ZONE_DEPTH_M`` behind the toe and ``PARTICLE_ZONE_HALF_WIDTH_M`` to each side of
-y = 0 (the bucket path with the start pose's lateral offset). Beyond it the pile is rigid:
-invisible static boxes with the pile's cross-section (face slab + crest) on both sides and
-a wall behind. They hold the particles in as the rest of the pile would, touch only the
-particles (collision bit ``WALL_CONTYPE``), and never the machine.
+about ``PARTICLE_ZONE_DEPTH_M`` behind the toe and ``PARTICLE_ZONE_HALF_WIDTH_M`` either
+side of the bucket's path (the walls go snug against the lattice: 1.32 m and 0.78 m for
+the default pile, the bucket is 1.3 m wide). The pile is uniform along its toe line, so
+``reset`` slides the zone sideways to where the start pose aims the bucket
+(``AIM_DEPTH_M`` into the pile). Beyond the zone the pile is rigid: invisible static boxes
+shaped like the pile (face slab + crest box on both sides, a wall behind) hold the
+particles as the rest of the pile would. They touch only particles (collision bit
+``WALL_CONTYPE``), never the machine.
 
 **Pile at reset.** The particles are laid on a hexagonal close-packed lattice filling the
-pile shape, then settled once in ``bind`` with the machine parked far away; the settled
-positions are cached and written back exactly at every ``reset``: the pile is the same
-every episode (no shape noise), so a seed fixes the whole episode.
+pile shape and settled once in ``bind`` with the machine parked far away; the settled
+positions are cached and written back exactly at every ``reset``, where the resting pile
+falls asleep at once. The pile is the same every episode (no shape noise, ``rng`` is not
+used), so a seed fixes the whole episode.
 
-**Solver.** With hundreds of bodies in one contact island MuJoCo's Newton solver (dense
-factorisation) is far too slow; the model switches to CG with an elliptic friction cone
-and ``IMPRATIO`` (stiffer friction, so piles do not creep), few iterations, and MuJoCo's
-body sleeping so that a pile at rest costs almost nothing. These options are global: the
-machine's own contacts (tyres) are solved with them too when this soil model is used.
+**Solver** (global MuJoCo options, so the machine's own contacts use them too). The
+particles touching each other and the bucket form one contact island that Newton's
+factorisation makes far too slow, so this model uses CG with a pyramidal friction cone and
+``SOLVER_ITERATIONS`` iterations. Driving and lifting in free air, the machine then matches
+the default Newton solver to within a few percent (an elliptic cone would need >= 100 CG
+iterations for that). In the pile the iteration cap leaves contact forces unconverged:
+against a converged solve the drive pressure reads ~15 % and the telescope pressure up to
+~40 % low, while fills, stall depth and scoop times agree. MuJoCo's body sleeping freezes
+a resting pile, so driving up to it costs almost nothing.
 
 **Tallies** (every ``update``; particle counts times the particle mass):
 
 - *in the bucket*: the particle centre lies inside the bucket's interior polygon
   (``BucketGeometry.polygon``, bucket frame x-z) and within ``|y_local| <= width / 2``;
-- *spilled*: not in the bucket, centre outside the pile footprint (the digging zone grown
-  by ``FOOTPRINT_MARGIN_M``) and below ``SPILL_HEIGHT_M`` (it has landed, off the pile);
-- *pile*: every other particle (in the footprint, or still in the air).
+- *spilled*: not in the bucket, centre outside the pile footprint (the digging zone and the
+  rigid boxes around it, plus ``FOOTPRINT_MARGIN_M`` in front of the toe) and lower than
+  ``SPILL_HEIGHT_M`` (it has landed off the pile);
+- *pile*: every other particle (on the footprint, or still in the air).
 
 So ``pile_mass_kg + bucket_load_kg + spilled_kg`` equals the initial mass at every call.
 The ``payload`` body is left alone: the particles carry their own mass.
@@ -61,62 +75,81 @@ if TYPE_CHECKING:
     from ..machine import Machine
 
 # ---- particles (coarse-grained clods, see module docstring)
-PARTICLE_RADIUS_M = 0.11  # clod radius [m]; sets the particle count, hence the speed
-MAX_PARTICLES = 400  # cap: a larger pile gets proportionally larger clods
-RADIUS_GROWTH = 1.05  # radius step while a lattice has more than MAX_PARTICLES
-PARTICLE_ZONE_DEPTH_M = 1.9  # particles from the toe to this far behind it [m]
-PARTICLE_ZONE_HALF_WIDTH_M = 1.0  # particles for |y| <= this [m]; bucket path +- 0.35 m
+MIN_PARTICLE_RADIUS_M = 0.04  # the lattice starts at this radius and grows [m]
+MAX_PARTICLES = 120  # default cap (~11 cm clods): keeps >= 2x real time on one core
+RADIUS_GROWTH = 1.05  # radius step while a lattice holds more than max_particles
+PARTICLE_FRICTION_RATIO = 0.7  # particle friction / tan(friction angle) (slump-test fit)
+PARTICLE_ZONE_DEPTH_M = 1.4  # particles from the toe to this far behind it [m]
+PARTICLE_ZONE_HALF_WIDTH_M = 0.85  # particles within this of the bucket's path [m]
+AIM_DEPTH_M = 0.5  # the zone is centred where the bucket's path is this far into the pile [m]
 PARTICLE_RGBA = (0.55, 0.47, 0.36, 1.0)
-# ---- collision bits (assets/wheel_loader.xml: ground 1/1, machine 2/1)
-PARTICLE_CONTYPE = 1  # particles are seen by the ground and the machine (conaffinity 1)
-PARTICLE_CONAFFINITY = 1 | 2 | 4  # particles see each other, the machine and the walls
-WALL_CONTYPE = 4  # rigid rest of the pile: seen by particles only
-WALL_THICKNESS_M = 0.4  # thickness of the boundary boxes [m]
-WALL_GROUP = 3  # geom group hidden by MuJoCo's default render flags
-# ---- contact priorities: higher wins the pair's friction (ground is 1)
-PARTICLE_PRIORITY = 2  # particle friction tan(phi) governs particle-ground contacts
-BUCKET_PRIORITY = 3  # steel friction tan(delta) governs particle-bucket contacts
+# ---- contacts (assets/wheel_loader.xml: ground contype 1 / conaffinity 1, machine 2 / 1)
+PARTICLE_CONTYPE = 1  # seen by the ground and the machine (their conaffinity 1)
+PARTICLE_CONAFFINITY = 1 | 2 | 4  # sees other particles, the machine and the walls
+WALL_CONTYPE = 4  # the rigid rest of the pile: seen by particles only
+WALL_THICKNESS_M = 0.6  # thickness of the boxes around the zone [m]
+WALL_GROUP = 3  # geom group that MuJoCo does not draw by default
+CONTACT_CONDIM = 3  # sliding friction only: the particles cannot rotate
+CONTACT_TIMECONST_S = 0.01  # stiff particle contacts (5 physics steps) [s]
+PARTICLE_PRIORITY = 2  # > ground's 1: particle friction governs particle-ground contacts
+BUCKET_PRIORITY = 3  # > particles': steel friction tan(delta) governs bucket contacts
 BUCKET_GEOMS = ("bucket_floor", "bucket_back", "bucket_top", "bucket_side_l", "bucket_side_r")
-TORSION_FRICTION = 0.0  # unused with condim 3
-CONTACT_CONDIM = 3  # sliding friction only: the particles cannot rotate anyway
-FRICTION_SCALE = 1.0
 # ---- solver (global options; see module docstring)
 SOLVER = mujoco.mjtSolver.mjSOL_CG
-CONE = mujoco.mjtCone.mjCONE_ELLIPTIC
-IMPRATIO = 10.0  # friction-to-normal impedance ratio; stops slow creep of a resting pile
-SOLVER_ITERATIONS = 10
-SOLVER_LS_ITERATIONS = 5
+CONE = mujoco.mjtCone.mjCONE_PYRAMIDAL
+SOLVER_ITERATIONS = 20
+SOLVER_LS_ITERATIONS = 10
 SOLVER_TOLERANCE = 1e-6
-SLEEP_TOLERANCE_M_S = 2e-3  # a particle island at rest below this speed sleeps [m/s]
-ARENA_BYTES = 96 * 2**20  # MuJoCo arena: a pile in motion makes thousands of contacts
+SLEEP_TOLERANCE_M_S = 5e-3  # a resting particle island below this speed sleeps [m/s]
 # ---- settling in bind
-PARK_DISTANCE_M = 40.0  # the machine waits this far behind the toe while the pile settles
+PARK_DISTANCE_M = 40.0  # the machine waits this far behind the toe while the pile settles [m]
+SETTLE_AWAKE_S = 0.5  # settling time before the pile may fall asleep [s]
 SETTLE_MAX_S = 3.0  # settling stops once the pile sleeps, at the latest after this [s]
-SETTLE_CHECK_S = 0.1  # how often settling checks whether the pile is asleep [s]
+SETTLE_CHECK_S = 0.1  # how often settling checks whether the pile sleeps [s]
 # ---- tallies
-FOOTPRINT_MARGIN_M = 0.25  # the pile footprint reaches this far beyond the digging zone [m]
-SPILL_HEIGHT_M = 0.5  # a particle off the footprint counts as spilled below this height [m]
+FOOTPRINT_MARGIN_M = 0.25  # the footprint reaches this far in front of the toe [m]
+SPILL_HEIGHT_M = 0.5  # off the footprint, a particle centre below this has spilled [m]
 EDGE_WINDOW_AHEAD_M = 0.25  # particles up to this far ahead of the cutting edge set its depth
-VOLUME_GRID_M = 0.01  # grid step for the pile-volume integral [m]
+VOLUME_GRID_M = 0.01  # grid step of the zone-volume integral [m]
 
 
 class ParticleSoil(SoilModel):
-    """Particle pile for cross-checking the heightfield model (see module docstring)."""
+    """A pile of non-rotating MuJoCo spheres (see module docstring).
+
+    Attributes set by ``add_to_spec``: ``radius_m`` [m], ``n_particles``,
+    ``particle_mass_kg`` [kg], ``zone_volume_m3`` [m^3]; by ``reset``: ``zone_offset_y_m`` [m].
+    """
 
     name = "particles"
+
+    def __init__(self, material, pile, bucket, *, max_particles: int = MAX_PARTICLES) -> None:
+        """Option (``soil_options`` of the env): ``max_particles``, the resolution.
+
+        The sphere radius grows from ``MIN_PARTICLE_RADIUS_M`` until the pile holds at most
+        this many: the default (~111 spheres of 11 cm) keeps >= 2x real time on one core;
+        350 (~8 cm spheres) is a finer cross-check at about real time.
+        """
+        super().__init__(material, pile, bucket)
+        if not (isinstance(max_particles, int) and 20 <= max_particles <= 5000):
+            raise ValueError(
+                f"ParticleSoil.max_particles: must be an int in [20, 5000], got {max_particles!r}"
+            )
+        self.max_particles = max_particles
 
     # ------------------------------------------------------------------ build
     def add_to_spec(self, spec: mujoco.MjSpec) -> None:
         pile = self.pile
         self.x_back_m = pile.toe_x_m + min(PARTICLE_ZONE_DEPTH_M, pile.length_m)
         self.half_width_m = min(PARTICLE_ZONE_HALF_WIDTH_M, pile.half_width_m)
-        self.zone_volume_m3 = self._zone_volume_m3()
         self.radius_m, self.lattice = self._fill_lattice()
+        # the walls go snug against the lattice, so that no grain can slump into a gap
+        self.x_back_m = float(self.lattice[:, 0].max()) + self.radius_m
+        self.half_width_m = float(np.abs(self.lattice[:, 1]).max()) + self.radius_m
+        self.zone_volume_m3 = self._zone_volume_m3()
         self.n_particles = len(self.lattice)
         self.particle_mass_kg = self.material.density_kg_m3 * self.zone_volume_m3 / self.n_particles
 
-        friction = math.tan(self.repose_angle_rad) * FRICTION_SCALE
-        self._first_body_name = "particle_0"
+        friction = PARTICLE_FRICTION_RATIO * math.tan(self.repose_angle_rad)
         for i, position in enumerate(self.lattice):
             body = spec.worldbody.add_body(name=f"particle_{i}", pos=position.tolist())
             for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
@@ -129,7 +162,8 @@ class ParticleSoil(SoilModel):
                 conaffinity=PARTICLE_CONAFFINITY,
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
-                friction=[friction, TORSION_FRICTION, 0.0],
+                friction=[friction, 0.0, 0.0],
+                solref=[CONTACT_TIMECONST_S, 1.0],
                 rgba=list(PARTICLE_RGBA),
             )
         self._add_walls(spec, friction)
@@ -137,20 +171,20 @@ class ParticleSoil(SoilModel):
         tool_friction = math.tan(math.radians(self.material.tool_friction_angle_deg))
         for name in BUCKET_GEOMS:
             geom = spec.geom(name)
+            if geom is None:
+                raise ValueError(f"ParticleSoil: the machine model has no bucket geom {name!r}")
             geom.priority = BUCKET_PRIORITY
             geom.friction[0] = tool_friction
 
         option = spec.option
         option.solver = SOLVER
         option.cone = CONE
-        option.impratio = IMPRATIO
         option.iterations = SOLVER_ITERATIONS
         option.ls_iterations = SOLVER_LS_ITERATIONS
         option.tolerance = SOLVER_TOLERANCE
         option.noslip_iterations = 0
         option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
         option.sleep_tolerance = SLEEP_TOLERANCE_M_S
-        spec.memory = max(spec.memory, ARENA_BYTES)
 
     def _zone_volume_m3(self) -> float:
         """Volume [m^3] of the undisturbed pile inside the digging zone."""
@@ -161,26 +195,24 @@ class ParticleSoil(SoilModel):
         return float(heights.sum() * VOLUME_GRID_M**2)
 
     def _fill_lattice(self) -> tuple[float, np.ndarray]:
-        """Particle radius [m] and centres (N, 3) [m] filling the zone, at most MAX_PARTICLES."""
-        radius = PARTICLE_RADIUS_M
-        while True:
-            centres = self._hcp_lattice(radius)
-            if len(centres) <= MAX_PARTICLES:
-                break
+        """Particle radius [m] and centres (N, 3) [m] filling the zone, N <= max_particles."""
+        radius = MIN_PARTICLE_RADIUS_M
+        centres = self._hcp_lattice(radius)
+        while len(centres) > self.max_particles:
             radius *= RADIUS_GROWTH
+            centres = self._hcp_lattice(radius)
         if len(centres) == 0:
             raise ValueError(
-                f"ParticleSoil: the pile {self.pile} is too small for particles of "
-                f"radius {radius:.3f} m"
+                f"ParticleSoil: the pile {self.pile} holds no particle of radius {radius:.3f} m"
             )
         return radius, centres
 
     def _hcp_lattice(self, r: float) -> np.ndarray:
-        """Hexagonal close packing (ABAB layers, every grain in a pocket of three) whose
-        centres lie under the pile surface, inside the digging zone."""
+        """Hexagonal close packing (ABAB layers, every grain in a pocket of three below) of
+        spheres of radius ``r`` [m] whose centres lie under the pile surface in the zone."""
         layer_dz, row_dy = 2 * r * math.sqrt(2.0 / 3.0), math.sqrt(3.0) * r
         n_layers = int(self.pile.height_m / layer_dz) + 1
-        n_rows = int(2 * self.half_width_m / row_dy) + 2
+        n_rows = int(self.half_width_m / row_dy) + 2
         n_cols = int((self.x_back_m - self.pile.toe_x_m) / (2 * r)) + 2
         layer, row, col = np.meshgrid(
             np.arange(n_layers), np.arange(-n_rows, n_rows + 1), np.arange(n_cols), indexing="ij"
@@ -191,51 +223,57 @@ class ParticleSoil(SoilModel):
         z = r + layer * layer_dz
         surface = self.pile.surface_height(x, y, self.repose_angle_rad)
         keep = (z <= surface) & (np.abs(y) <= self.half_width_m - r) & (x <= self.x_back_m - r)
-        return np.stack([x[keep], y[keep], z[keep]], axis=1)
+        centres = np.stack([x[keep], y[keep], z[keep]], axis=1)
+        if len(centres):  # odd layers sit r / sqrt(3) off: centre the lattice on y = 0
+            centres[:, 1] -= (centres[:, 1].max() + centres[:, 1].min()) / 2
+        return centres
 
     def _add_walls(self, spec: mujoco.MjSpec, friction: float) -> None:
-        """The rigid rest of the pile: face slab and crest box on each side, a wall behind."""
+        """The rigid rest of the pile: a face slab and a crest box on each side of the zone and
+        a wall behind it, up to the pile surface.
+
+        They sit on a static body (a mocap body would keep the particles touching it awake)
+        that ``reset`` slides sideways with the particles."""
         pile, t = self.pile, WALL_THICKNESS_M
         slope = self.repose_angle_rad
         face_length = pile.height_m / math.sin(slope)
         crest_x = pile.toe_x_m + pile.height_m / math.tan(slope)
-        # face slab: top face on the face plane from the toe (extended below ground) to the crest
-        extra = t
-        along = (face_length - extra) / 2  # centre of the slab along the face from the toe
-        centre_xz = (
-            np.array([pile.toe_x_m, 0.0])
-            + along * np.array([math.cos(slope), math.sin(slope)])
-            - t / 2 * np.array([-math.sin(slope), math.cos(slope)])
+        along, normal = (
+            np.array([math.cos(slope), math.sin(slope)]),
+            np.array([-math.sin(slope), math.cos(slope)]),
         )
+        # face slab: top face on the face plane, from t below ground in front of the toe
+        face_xz = np.array([pile.toe_x_m, 0.0]) + (face_length - t) / 2 * along - t / 2 * normal
         face_quat = [math.cos(-slope / 2), 0.0, math.sin(-slope / 2), 0.0]
-        crest_half_length = (self.x_back_m + t / 2 - crest_x) / 2
+        level = [1.0, 0.0, 0.0, 0.0]
+        crest_half_length = (self.x_back_m + t - crest_x) / 2
         boxes = []
         for side in (-1.0, 1.0):
             y = side * (self.half_width_m + t / 2)
             boxes.append(
-                (
-                    [centre_xz[0], y, centre_xz[1]],
-                    face_quat,
-                    [(face_length + extra) / 2, t / 2, t / 2],
-                )
+                ([face_xz[0], y, face_xz[1]], face_quat, [(face_length + t) / 2, t / 2, t / 2])
             )
             if crest_half_length > 0:
                 boxes.append(
                     (
                         [crest_x + crest_half_length, y, pile.height_m / 2],
-                        [1.0, 0.0, 0.0, 0.0],
+                        level,
                         [crest_half_length, t / 2, pile.height_m / 2],
                     )
                 )
+        back_height = float(
+            pile.surface_height(np.array([self.x_back_m]), np.array([0.0]), slope)[0]
+        )
         boxes.append(
             (
-                [self.x_back_m + t / 2, 0.0, pile.height_m / 2],
-                [1.0, 0.0, 0.0, 0.0],
-                [t / 2, self.half_width_m + t, pile.height_m / 2],
+                [self.x_back_m + t / 2, 0.0, back_height / 2],
+                level,
+                [t / 2, self.half_width_m + t, back_height / 2],
             )
         )
+        walls = spec.worldbody.add_body(name="pile_walls")
         for i, (pos, quat, size) in enumerate(boxes):
-            spec.worldbody.add_geom(
+            walls.add_geom(
                 name=f"pile_wall_{i}",
                 type=mujoco.mjtGeom.mjGEOM_BOX,
                 pos=pos,
@@ -245,75 +283,96 @@ class ParticleSoil(SoilModel):
                 conaffinity=0,
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
-                friction=[friction, TORSION_FRICTION, 0.0],
+                friction=[friction, 0.0, 0.0],
+                solref=[CONTACT_TIMECONST_S, 1.0],
                 group=WALL_GROUP,
-                rgba=list(PARTICLE_RGBA[:3]) + [0.3],
+                rgba=[*PARTICLE_RGBA[:3], 0.3],
             )
 
     # ------------------------------------------------------------------ bind
     def bind(self, model: mujoco.MjModel, data: mujoco.MjData, machine: Machine) -> None:
         self.model, self.data, self.machine = model, data, machine
-        first = model.body(self._first_body_name).id
+        first = model.body("particle_0").id
         self._bodies = slice(first, first + self.n_particles)
         joint = int(model.body_jntadr[first])
-        self._qpos = slice(
-            int(model.jnt_qposadr[joint]), int(model.jnt_qposadr[joint]) + 3 * self.n_particles
-        )
-        self._dofs = slice(
-            int(model.jnt_dofadr[joint]), int(model.jnt_dofadr[joint]) + 3 * self.n_particles
-        )
+        qpos0, dof0 = int(model.jnt_qposadr[joint]), int(model.jnt_dofadr[joint])
+        self._qpos = slice(qpos0, qpos0 + 3 * self.n_particles)
+        self._dofs = slice(dof0, dof0 + 3 * self.n_particles)
         last = joint + 3 * self.n_particles - 1
-        if (
-            model.jnt_qposadr[last] != self._qpos.stop - 1
-            or model.jnt_dofadr[last] != self._dofs.stop - 1
+        if model.jnt_qposadr[last] != self._qpos.stop - 1 or (
+            model.jnt_dofadr[last] != self._dofs.stop - 1
         ):
             raise RuntimeError("ParticleSoil: the particles' joints are not contiguous")
+        self._walls_body = model.body("pile_walls").id
         self._polygon = self.bucket.polygon
         self._footprint_x = (
             self.pile.toe_x_m - FOOTPRINT_MARGIN_M,
-            self.x_back_m + FOOTPRINT_MARGIN_M,
+            self.x_back_m + WALL_THICKNESS_M,
         )
-        self._footprint_half_width = self.half_width_m + FOOTPRINT_MARGIN_M
+        self._footprint_half_width = self.half_width_m + WALL_THICKNESS_M
+        self.zone_offset_y_m = 0.0
         self.initial_mass_kg = self.n_particles * self.particle_mass_kg
         self._settled_qpos = self._settle()
         self._counts = (self.n_particles, 0, 0)
         self._depth_m = 0.0
 
     def _settle(self) -> np.ndarray:
-        """Let the lattice settle under gravity with the machine parked far behind; return the
-        particles' joint positions [m] (displacements from their lattice points)."""
+        """Let the lattice settle under gravity with the machine parked far behind the pile;
+        return the particles' joint positions [m] (displacements from the lattice).
+
+        The first ``SETTLE_AWAKE_S`` run with sleeping off (a freshly laid lattice would
+        fall asleep before its contacts take the load), then until the pile sleeps."""
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
-        d.qpos[0] = self.pile.toe_x_m - PARK_DISTANCE_M  # the machine's root x
+        d.qpos[0] = self.pile.toe_x_m - PARK_DISTANCE_M  # the machine's free joint: root x
         mujoco.mj_forward(m, d)
+        sleep = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+        m.opt.enableflags &= ~sleep
+        mujoco.mj_step(m, d, nstep=max(1, round(SETTLE_AWAKE_S / m.opt.timestep)))
+        m.opt.enableflags |= sleep
         trees = np.unique(m.body_treeid[self._bodies])
         steps = max(1, round(SETTLE_CHECK_S / m.opt.timestep))
-        for _ in range(max(1, round(SETTLE_MAX_S / SETTLE_CHECK_S))):
+        while d.time < SETTLE_MAX_S and d.tree_awake[trees].any():
             mujoco.mj_step(m, d, nstep=steps)
-            if not d.tree_awake[trees].any():
-                break
+        self.settle_time_s = float(d.time)
         settled = d.qpos[self._qpos].copy()
         mujoco.mj_resetData(m, d)
         return settled
 
     # ------------------------------------------------------------------ reset
     def reset(self, rng: np.random.Generator) -> None:
-        """Write the cached settled pile back (no shape noise: ``rng`` is not drawn from)."""
+        """Lay the cached settled pile where the start pose aims the bucket (no shape noise:
+        ``rng`` is not used)."""
         m, d = self.model, self.data
-        d.qpos[self._qpos] = self._settled_qpos
+        self.zone_offset_y_m = self._aim_offset_y()
+        qpos = self._settled_qpos.reshape(-1, 3).copy()
+        qpos[:, 1] += self.zone_offset_y_m
+        d.qpos[self._qpos] = qpos.ravel()
         d.qvel[self._dofs] = 0.0
-        d.qacc_warmstart[self._dofs] = 0.0
-        mujoco.mj_kinematics(m, d)
+        m.body_pos[self._walls_body, 1] = self.zone_offset_y_m
+        _refresh_static_bodies(m, d)
         self._tally()
         self.initial_mass_kg = self.n_particles * self.particle_mass_kg
 
+    def _aim_offset_y(self) -> float:
+        """World y [m] of the cutting edge's straight path ``AIM_DEPTH_M`` into the pile,
+        clipped so that the zone stays on the pile's straight stretch."""
+        edge = self.data.site_xpos[self.machine.cutting_edge_site]
+        heading = self.machine.heading()
+        if heading[0] <= 0.0:
+            return 0.0
+        target_x = self.pile.toe_x_m + AIM_DEPTH_M
+        y = edge[1] + heading[1] / heading[0] * (target_x - edge[0])
+        limit = max(self.pile.half_width_m - self.half_width_m, 0.0)
+        return float(np.clip(y, -limit, limit))
+
     # ------------------------------------------------------------------ update
     def update(self, dt: float) -> None:
-        """Recount the particles (the physics happened in ``mj_step``); ``dt`` is unused."""
+        """Recount the particles; the physics of the last ``dt`` seconds ran in ``mj_step``."""
         self._tally()
 
     def particle_positions(self) -> np.ndarray:
-        """Particle centres (N, 3) [m] in the world frame."""
+        """Particle centres (N, 3) [m], world frame, as of the last physics step."""
         return self.data.xpos[self._bodies]
 
     def _tally(self) -> None:
@@ -325,12 +384,12 @@ class ParticleSoil(SoilModel):
             local[:, 0], local[:, 2], self._polygon
         )
         x, y, z = positions[:, 0], positions[:, 1], positions[:, 2]
-        in_footprint = (
+        on_footprint = (
             (x >= self._footprint_x[0])
             & (x <= self._footprint_x[1])
-            & (np.abs(y) <= self._footprint_half_width)
+            & (np.abs(y - self.zone_offset_y_m) <= self._footprint_half_width)
         )
-        spilled = ~in_bucket & ~in_footprint & (z < SPILL_HEIGHT_M)
+        spilled = ~in_bucket & ~on_footprint & (z < SPILL_HEIGHT_M)
         n_bucket, n_spilled = int(in_bucket.sum()), int(spilled.sum())
         self._counts = (self.n_particles - n_bucket - n_spilled, n_bucket, n_spilled)
         self.bucket_load_kg = n_bucket * self.particle_mass_kg
@@ -368,6 +427,17 @@ class ParticleSoil(SoilModel):
 
     def cutting_depth_m(self) -> float:
         return self._depth_m
+
+
+def _refresh_static_bodies(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """Make MuJoCo pick up a moved static body: with sleeping enabled it computes static
+    poses and bounding boxes only in ``mj_resetData``. The simulation state is kept."""
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
+    state = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state, spec)
+    mujoco.mj_resetData(model, data)
+    mujoco.mj_setState(model, data, state, spec)
+    mujoco.mj_forward(model, data)
 
 
 def _inside_polygon(u: np.ndarray, v: np.ndarray, polygon: np.ndarray) -> np.ndarray:
