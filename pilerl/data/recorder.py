@@ -20,6 +20,7 @@ import torch
 from tensordict import TensorDict
 from tqdm import tqdm
 
+from pilerl.evaluation import Episode, run_episode
 from pilerl.operators import ScriptedScoopOperator, phase_index, sample_style
 from pilerl.sim import make_gym_env
 
@@ -67,38 +68,29 @@ def record_episode(
     ``phase`` (optional) names the operator's phase at each step; it is stored as the
     extra per-step key ``phase`` (index into ``pilerl.operators.PHASES``).
     """
-    obs, start_info = env.reset(seed=seed)
-    names = list(obs)
-    before: dict[str, list] = {k: [] for k in names}
-    after: dict[str, list] = {k: [] for k in names}
-    actions, rewards, phases = [], [], []
-    while True:
-        action = np.asarray(act(obs), dtype=np.float32)
-        if phase is not None:
-            phases.append(phase_index(phase()))
-        next_obs, reward, terminated, truncated, info = env.step(action)
-        for k in names:
-            before[k].append(float(obs[k][0]))
-            after[k].append(float(next_obs[k][0]))
-        actions.append(action)
-        rewards.append(float(reward))
-        obs = next_obs
-        if terminated or truncated:
-            break
-    dt = float(env.unwrapped.dt)
-    n = len(actions)
+    run = run_episode(env, act, seed=seed, phase=phase)
+    return episode_tensordict(run), run.start_info, run.final_info
+
+
+def episode_tensordict(run: Episode) -> TensorDict:
+    """A run as a schema-v1 episode: each row's readings before and after its action."""
+    after = {k: torch.as_tensor(v, dtype=torch.float32) for k, v in run.sensors.items()}
+    before = {
+        k: torch.cat([torch.tensor([run.start_sensors[k]]), v[:-1]]) for k, v in after.items()
+    }
+    dt = float(run.time_s[0])
     episode = make_episode(
-        sensors={k: torch.tensor(v) for k, v in before.items()},
-        next_sensors={k: torch.tensor(v) for k, v in after.items()},
-        actions=torch.tensor(np.array(actions)),
-        time_s=torch.arange(n, dtype=torch.float64) * dt,
-        rewards=torch.tensor(rewards),
-        terminated=bool(terminated),
-        truncated=bool(truncated),
+        sensors=before,
+        next_sensors=after,
+        actions=torch.as_tensor(run.actions),
+        time_s=torch.arange(len(run.actions), dtype=torch.float64) * dt,
+        rewards=torch.as_tensor(run.rewards),
+        terminated=run.terminated,
+        truncated=run.truncated,
     )
-    if phases:
-        episode["phase"] = torch.tensor(phases, dtype=torch.int64)
-    return episode, start_info, info
+    if run.phases:
+        episode["phase"] = torch.tensor([phase_index(p) for p in run.phases])
+    return episode
 
 
 def _record_one(plan: RecordingPlan, index: int) -> tuple[TensorDict, EpisodeMeta]:

@@ -30,6 +30,9 @@ class Episode:
         rewards: per-step reward.
         traces: selected ``info`` values per step (``INFO_TRACES`` that the env reports).
         final_info: the last step's ``info``; start_info: ``info`` at reset.
+        start_sensors: sensor readings at reset (before the first action).
+        terminated, truncated: how the episode ended.
+        phases: the controller's phase name at each step, if it reported one.
         frames: rendered RGB frames (empty unless rendering was asked for).
         frame_hz: frames per simulated second in ``frames``.
     """
@@ -41,6 +44,10 @@ class Episode:
     traces: dict[str, np.ndarray]
     final_info: dict
     start_info: dict
+    start_sensors: dict[str, float] = field(default_factory=dict)
+    terminated: bool = False
+    truncated: bool = False
+    phases: list[str] = field(default_factory=list)
     frames: list[np.ndarray] = field(default_factory=list)
     frame_hz: float = 0.0
 
@@ -52,6 +59,7 @@ def run_episode(
     seed: int | None = None,
     render: bool = False,
     max_frame_hz: float = 10.0,
+    phase: Callable[[], str] | None = None,
     progress: str | None = None,
 ) -> Episode:
     """Reset ``env`` with ``seed`` and step it with ``act(observation)`` until it ends.
@@ -62,9 +70,12 @@ def run_episode(
         render: also collect ``env.render()`` frames (env made with ``rgb_array``).
         max_frame_hz: render at most this many frames per simulated second (offscreen
             rendering costs more than simulating); ``Episode.frame_hz`` records the rate.
+        phase: if given, called before each step to name the controller's phase.
         progress: if given, show a progress bar with this label.
     """
     obs, start_info = env.reset(seed=seed)
+    start_sensors = {name: float(np.asarray(v).reshape(-1)[0]) for name, v in obs.items()}
+    phases: list[str] = []
     dt = float(env.unwrapped.dt)
     sensors: dict[str, list[float]] = {name: [] for name in obs}
     actions, rewards, times, frames = [], [], [], []
@@ -75,6 +86,8 @@ def run_episode(
         frames.append(env.render())
     while True:
         action = np.asarray(act(obs), dtype=np.float32)
+        if phase is not None:
+            phases.append(phase())
         obs, reward, terminated, truncated, info = env.step(action)
         for name, value in obs.items():
             sensors[name].append(float(np.asarray(value).reshape(-1)[0]))
@@ -97,6 +110,10 @@ def run_episode(
         traces={k: np.asarray(v) for k, v in traces.items()},
         final_info=info,
         start_info=start_info,
+        start_sensors=start_sensors,
+        terminated=bool(terminated),
+        truncated=bool(truncated),
+        phases=phases,
         frames=frames,
         frame_hz=1.0 / (dt * frame_stride),
     )
