@@ -133,7 +133,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--soil", choices=sorted(SOIL_MODELS), action="append")
     parser.add_argument("--seconds", type=float, default=40.0, help="simulated seconds per row")
-    parser.add_argument("--batch", type=int, default=8, help="simulators in the batched rows")
+    parser.add_argument("--batch", type=int, default=4, help="simulators in the batched rows")
     args = parser.parse_args()
     torch.set_num_threads(1)
     steps = int(args.seconds / 0.05)

@@ -1,7 +1,8 @@
 """An 8-job sweep's wall time: Hydra's sequential launcher vs the local parallel launcher.
 
-Both sweeps run the same 8 scoop jobs (seeds 0-7, summer, no video) in the same run, so
-the ratio is measured on the same machine state. The parallel launcher
+Both sweeps run the same 8 jobs in the same run, so the ratio is measured on the same
+machine state. A job records 3 scripted demonstrations at 100 Hz (a few seconds of work,
+like a small real job; a one-second job would measure only process start-up). The parallel launcher
 (``hydra/launcher=local_parallel``: joblib, 2 processes, one thread each) should approach
 the number of cores on this 2-core machine, less process start-up.
 
@@ -19,17 +20,19 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 JOBS = 8
-SCOOP = [
-    "recipes/scoop.py",
+JOB = [
+    "recipes/record.py",
     "--multirun",
-    "video=false",
-    "conditions=[summer]",
+    "n_episodes=3",
+    "record_hz=100",
+    "workers=1",
+    "out_dir=${hydra:runtime.output_dir}/demos",
     f"seed={','.join(str(s) for s in range(JOBS))}",
 ]
 
 
 def sweep(launcher: str | None, sweep_dir: str) -> float:
-    args = [sys.executable, *SCOOP, f"hydra.sweep.dir={sweep_dir}"]
+    args = [sys.executable, *JOB, f"hydra.sweep.dir={sweep_dir}"]
     if launcher:
         args.append(f"hydra/launcher={launcher}")
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MUJOCO_GL": "egl"}
@@ -43,7 +46,7 @@ def sweep(launcher: str | None, sweep_dir: str) -> float:
 
 
 def main() -> None:
-    print(f"{JOBS} scoop jobs, cores={os.cpu_count()}\n")
+    print(f"{JOBS} record jobs (3 episodes at 100 Hz each), cores={os.cpu_count()}\n")
     print("| launcher | wall s | jobs/min | speed-up vs sequential |")
     print("|---|---:|---:|---:|")
     with tempfile.TemporaryDirectory() as tmp:

@@ -72,3 +72,14 @@ def test_batched_torchrl_env_steps_several_simulators_in_one_process():
 def test_num_envs_must_be_positive():
     with pytest.raises(ValueError, match="num_envs"):
         make_torchrl_env("toy_cart", num_envs=0)
+
+
+def test_native_batched_env_resets_only_the_finished_simulators():
+    env = make_torchrl_env("toy_cart", num_envs=2, seed=1)
+    reset = env.reset()
+    start = reset["position"].clone()
+    assert start[0] != start[1]  # seeds 1 and 2
+    rollout = env.rollout(150, break_when_any_done=False)  # ToyCart truncates at 100 steps
+    done = rollout["next", "done"].squeeze(-1)
+    assert done[:, 99].all() and not done[:, :99].any()
+    assert rollout.batch_size == (2, 150)
