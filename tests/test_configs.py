@@ -81,3 +81,12 @@ def test_impossible_operator_style_fails_when_the_config_is_built():
         )
     with pytest.raises(ValueError, match="trigger_sensor"):
         OmegaConf.to_object(cfg)
+
+
+@pytest.mark.parametrize("policy", ["nnet", "nnetv2", "annet", "dannet", "rf"])
+@pytest.mark.parametrize("sensors", ["s", "s_pt", "s_pt_sprime"])
+def test_every_policy_and_sensor_set_composes(policy, sensors):
+    cfg = compose_config("train_bc", [f"policy={policy}", f"sensors={sensors}"])
+    assert cfg.policy.name == policy
+    assert "boom_angle" in cfg.sensors.s
+    assert (cfg.sensors.s_prime is None) == (sensors != "s_pt_sprime")

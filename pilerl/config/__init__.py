@@ -4,13 +4,19 @@ from .schema import (
     BuildDatasetConfig,
     DatasetConfig,
     EnvConfig,
+    PolicyConfig,
     RecordConfig,
     ScoopConfig,
+    SensorsConfig,
     TeleopConfig,
+    TrainBCConfig,
     register_configs,
 )
 
 __all__ = [
+    "PolicyConfig",
+    "SensorsConfig",
+    "TrainBCConfig",
     "BuildDatasetConfig",
     "DatasetConfig",
     "EnvConfig",

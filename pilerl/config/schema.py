@@ -137,6 +137,45 @@ class TeleopConfig:
     out_dir: str = MISSING
 
 
+@dataclass
+class PolicyConfig:
+    """A controller (the ``policy`` config group): registry name and its options."""
+
+    name: str = MISSING
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class SensorsConfig:
+    """Controller inputs s and attention inputs s' by sensor name (``sensors`` group)."""
+
+    s: list[str] = MISSING
+    s_prime: list[str] | None = None
+
+
+@dataclass
+class TrainBCConfig:
+    """The train_bc recipe: behaviour cloning of one controller on one dataset.
+
+    Attributes:
+        train_data: training dataset directory (``recipes/build_dataset.py``).
+        validation_data: held-out demonstrations for the validation loss, or ``None``.
+        epochs, batch_size, learning_rate, seed: ``pilerl.training.BCSettings``.
+        logger: ``csv``, ``tensorboard`` or ``none`` (TorchRL loggers).
+    """
+
+    policy: PolicyConfig = field(default_factory=PolicyConfig)
+    sensors: SensorsConfig = field(default_factory=SensorsConfig)
+    train_data: str = MISSING
+    validation_data: str | None = None
+    epochs: int = 150
+    batch_size: int = 512
+    learning_rate: float = 1e-3
+    seed: int = 0
+    logger: str = "csv"
+    output_dir: str = MISSING
+
+
 def register_configs() -> None:
     """Put the schemas in Hydra's ConfigStore (idempotent)."""
     store = ConfigStore.instance()
@@ -144,5 +183,8 @@ def register_configs() -> None:
     store.store(name="record_schema", node=RecordConfig)
     store.store(name="build_dataset_schema", node=BuildDatasetConfig)
     store.store(name="teleop_schema", node=TeleopConfig)
+    store.store(name="train_bc_schema", node=TrainBCConfig)
+    store.store(group="policy", name="policy_schema", node=PolicyConfig)
+    store.store(group="sensors", name="sensors_schema", node=SensorsConfig)
     store.store(group="env", name="env_schema", node=EnvConfig)
     store.store(group="dataset", name="dataset_schema", node=DatasetConfig)

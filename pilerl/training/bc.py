@@ -1,0 +1,215 @@
+"""Behaviour cloning: fit a controller to demonstrations, as the paper does.
+
+Paper defaults (``BCSettings``): MSE loss (TorchRL ``BCLoss``), RAdam, batch 512, learning
+rate 1e-3, 150 epochs, seeded. The validation loss (MSE on held-out demonstrations, e.g.
+winter ones) is computed after every epoch. The random forest is fitted once instead.
+
+Checkpoints (``run_dir``): ``last.pt`` after every epoch (actor, optimiser, epoch, RNG
+state, history) and ``best.pt`` (the actor with the lowest validation loss, readable by
+``pilerl.policies.load_actor``). Both are read with ``torch.load(weights_only=True)``: no
+code runs on load. A run given the ``run_dir`` of a killed run resumes from ``last.pt``
+and ends with the same weights as an uninterrupted run: the batch order of epoch k is
+drawn from a generator seeded with (seed, k), and the dropout RNG state is restored.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import torch
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule
+from torchrl.objectives import BCLoss
+from tqdm import tqdm
+
+from pilerl.io import atomic_path
+from pilerl.policies import actor_policy, policy_actor, save_actor
+from pilerl.policies.actors import RandomForestActor
+from pilerl.policies.config import ActorConfig
+from pilerl.policies.registry import build_policy
+
+RUN_FORMAT = "pilerl.bc_run"
+RUN_VERSION = 1
+EVAL_BATCH = 8192  # rows per forward pass when computing a validation loss
+
+
+@dataclass(frozen=True)
+class BCSettings:
+    """Training settings (the paper's defaults).
+
+    Attributes:
+        epochs: passes over the training data.
+        batch_size: samples per gradient step.
+        learning_rate: RAdam's learning rate.
+        seed: seeds the initial weights, the batch order and dropout.
+    """
+
+    epochs: int = 150
+    batch_size: int = 512
+    learning_rate: float = 1e-3
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.epochs < 1 or self.batch_size < 1:
+            raise ValueError(f"BCSettings: epochs and batch_size must be >= 1, got {self}")
+        if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
+            raise ValueError(f"BCSettings.learning_rate: must be > 0, got {self.learning_rate}")
+
+
+def validation_loss(actor: TensorDictModule, data: TensorDict) -> float:
+    """Mean squared error between the actor's action (eval mode) and the demonstrated one."""
+    policy = actor_policy(actor)
+    was_training = policy.training
+    policy.eval()
+    total, count = 0.0, 0
+    with torch.no_grad():
+        for start in range(0, data.batch_size[0], EVAL_BATCH):
+            chunk = data[start : start + EVAL_BATCH]
+            predicted = actor(chunk.select(*policy.in_keys).clone())["action"]
+            total += float(((predicted - chunk["action"]) ** 2).sum())
+            count += predicted.numel()
+    policy.train(was_training)
+    return total / count
+
+
+def train_bc(
+    actor: TensorDictModule,
+    train: TensorDict,
+    validation: TensorDict | None,
+    settings: BCSettings,
+    *,
+    run_dir: str | Path | None = None,
+    logger=None,
+    progress: bool = True,
+) -> tuple[TensorDictModule, list[dict]]:
+    """Fit ``actor`` to ``train``; returns (the trained actor, one history row per epoch).
+
+    Args:
+        actor: from ``pilerl.policies.make_actor`` (the random forest is fitted, not
+            trained by gradient).
+        train, validation: transitions with the actor's sensor keys and ``action``.
+        run_dir: where ``last.pt`` / ``best.pt`` go; a ``last.pt`` there is resumed.
+        logger: a TorchRL logger (``log_scalar(name, value, step)``), or ``None``.
+    """
+    if isinstance(actor, RandomForestActor):
+        return _fit_forest(actor, train, validation, run_dir=run_dir, logger=logger)
+    torch.manual_seed(settings.seed)
+    policy = actor_policy(actor)
+    optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
+    history: list[dict] = []
+    best = math.inf
+    run_dir = Path(run_dir) if run_dir is not None else None
+    if run_dir is not None and (run_dir / "last.pt").exists():
+        policy, optimizer, history, best = _resume(run_dir / "last.pt", settings)
+        actor = policy_actor(policy)
+    loss_module = BCLoss(actor, loss_function="mse")
+    n = train.batch_size[0]
+    epochs = range(len(history), settings.epochs)
+    bar = tqdm(
+        epochs,
+        desc="behaviour cloning",
+        unit="epoch",
+        disable=not progress,
+        initial=len(history),
+        total=settings.epochs,
+    )
+    for epoch in bar:
+        policy.train()
+        order = torch.randperm(
+            n, generator=torch.Generator().manual_seed(settings.seed * 1_000_003 + epoch)
+        )
+        total = 0.0
+        for start in range(0, n, settings.batch_size):
+            batch = train[order[start : start + settings.batch_size]]
+            loss = loss_module(batch)["loss_bc"]
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            total += float(loss.detach()) * batch.batch_size[0]
+        row = {"epoch": epoch + 1, "train_loss": total / n}
+        if validation is not None:
+            row["validation_loss"] = validation_loss(actor, validation)
+        history.append(row)
+        _log(logger, row)
+        score = row.get("validation_loss", row["train_loss"])
+        if run_dir is not None:
+            if score < best:
+                save_actor(run_dir / "best.pt", policy)
+            best = min(best, score)
+            _save_run(run_dir / "last.pt", policy, optimizer, history, best, settings)
+        bar.set_postfix({k: f"{v:.4g}" for k, v in row.items() if k != "epoch"})
+    bar.close()
+    policy.eval()
+    return actor, history
+
+
+def _fit_forest(
+    actor: RandomForestActor,
+    train: TensorDict,
+    validation: TensorDict | None,
+    *,
+    run_dir: str | Path | None,
+    logger,
+) -> tuple[TensorDictModule, list[dict]]:
+    actor.fit(train)
+    row = {"epoch": 1, "train_loss": validation_loss(actor, train)}
+    if validation is not None:
+        row["validation_loss"] = validation_loss(actor, validation)
+    _log(logger, row)
+    if run_dir is not None:
+        save_actor(Path(run_dir) / "best.pt", actor)
+    return actor, [row]
+
+
+def _log(logger, row: dict) -> None:
+    if logger is None:
+        return
+    for name, value in row.items():
+        if name != "epoch":
+            logger.log_scalar(name, value, step=row["epoch"])
+
+
+def _save_run(
+    path: Path, policy, optimizer, history: list[dict], best: float, settings: BCSettings
+) -> None:
+    payload = {
+        "format": RUN_FORMAT,
+        "version": RUN_VERSION,
+        "settings": json.dumps(asdict(settings)),
+        "actor_config": json.dumps(policy.config.to_json(), allow_nan=False),
+        "state_dict": {k: v.detach().clone() for k, v in policy.state_dict().items()},
+        "optimizer": optimizer.state_dict(),
+        "history": json.dumps(history),
+        "best": best,
+        "rng_state": torch.get_rng_state(),
+    }
+    with atomic_path(path) as tmp:
+        torch.save(payload, tmp)
+
+
+def _resume(path: Path, settings: BCSettings):
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:  # noqa: BLE001 - torch raises many kinds; name the file
+        raise ValueError(f"{path}: not a readable training checkpoint ({error})") from error
+    if not isinstance(payload, dict) or payload.get("format") != RUN_FORMAT:
+        raise ValueError(f"{path}: not a pilerl behaviour-cloning checkpoint")
+    if payload.get("version") != RUN_VERSION:
+        raise ValueError(
+            f"{path}: checkpoint version {payload.get('version')!r}, "
+            f"this pilerl reads {RUN_VERSION}"
+        )
+    saved = json.loads(payload["settings"])
+    if saved != asdict(settings) | {"epochs": saved["epochs"]}:
+        raise ValueError(
+            f"{path}: was trained with {saved}, not {asdict(settings)}; use a new run directory"
+        )
+    policy = build_policy(ActorConfig.from_json(json.loads(payload["actor_config"])))
+    policy.load_state_dict(payload["state_dict"])
+    optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
+    optimizer.load_state_dict(payload["optimizer"])
+    torch.set_rng_state(payload["rng_state"])
+    return policy, optimizer, json.loads(payload["history"]), float(payload["best"])

@@ -1,0 +1,160 @@
+"""Behaviour cloning: learning, checkpoints, resume, the recipe."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+
+from pilerl.data import EpisodeStore, RecordingPlan, build_dataset, record_demonstrations
+from pilerl.policies import load_actor, make_actor
+from pilerl.sim import make_gym_env
+from pilerl.training import BCSettings, train_bc, validation_loss
+
+ROOT = Path(__file__).resolve().parents[1]
+S = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
+
+
+@pytest.fixture(scope="module")
+def datasets(tmp_path_factory):
+    """4 recorded summer demonstrations at 20 Hz as D_I, and 2 winter ones to validate."""
+    root = tmp_path_factory.mktemp("bc")
+    env = make_gym_env("pile_loader").unwrapped
+    stores = {}
+    for name, condition, n in (("summer", "summer", 4), ("winter", "winter_c", 2)):
+        store = EpisodeStore.create(
+            root / name, sensors=env.sensor_units, controls=list(env.control_names)
+        )
+        plan = RecordingPlan(
+            "pile_loader",
+            {"condition": condition, "control_hz": 20.0},
+            n_episodes=n,
+            seed=5,
+            trigger_sensor="telescope_pressure",
+        )
+        record_demonstrations(store, plan, workers=1, progress=False)
+        stores[name] = store
+    train = build_dataset(
+        stores["summer"], root / "d_i", successful_only=False, rate_hz=None, progress=False
+    )
+    return root, train, stores["winter"].to_tensordict()
+
+
+def test_bc_lowers_the_validation_loss(datasets):
+    _, train, validation = datasets
+    torch.manual_seed(0)
+    actor = make_actor("dannet", sensors=S, stats=train.stats)
+    before = validation_loss(actor, validation)
+    actor, history = train_bc(
+        actor,
+        train.to_tensordict(),
+        validation,
+        BCSettings(epochs=15, batch_size=64),
+        progress=False,
+    )
+    assert len(history) == 15
+    assert history[-1]["train_loss"] < 0.7 * history[0]["train_loss"]
+    assert history[-1]["validation_loss"] < 0.8 * before
+
+
+def test_a_killed_run_resumes_to_the_same_weights(datasets, tmp_path):
+    _, train, validation = datasets
+    data = train.to_tensordict()
+
+    def run(epochs: int, run_dir: Path):
+        torch.manual_seed(3)  # the same initial weights every time
+        actor = make_actor("nnetv2", sensors=S, stats=train.stats)
+        settings = BCSettings(epochs=epochs, batch_size=64, seed=3)
+        return train_bc(actor, data, validation, settings, run_dir=run_dir, progress=False)
+
+    straight, _ = run(4, tmp_path / "a")
+    run(2, tmp_path / "b")  # "killed" after 2 epochs: last.pt stays behind
+    resumed, history = run(4, tmp_path / "b")  # a new process finds last.pt and goes on
+    assert [row["epoch"] for row in history] == [1, 2, 3, 4]
+    a, b = straight.module.state_dict(), resumed.module.state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_best_checkpoint_loads_safely_and_acts_the_same(datasets, tmp_path):
+    _, train, validation = datasets
+    actor, history = train_bc(
+        make_actor("annet", sensors=S, stats=train.stats),
+        train.to_tensordict(),
+        validation,
+        BCSettings(epochs=3, batch_size=64),
+        run_dir=tmp_path,
+        progress=False,
+    )
+    best = min(range(3), key=lambda i: history[i]["validation_loss"])
+    loaded = load_actor(tmp_path / "best.pt")
+    assert validation_loss(loaded, validation) == pytest.approx(
+        history[best]["validation_loss"], rel=1e-5
+    )
+
+
+def test_corrupt_training_checkpoint_is_refused(datasets, tmp_path):
+    _, train, _ = datasets
+    (tmp_path / "last.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(ValueError, match="last.pt: not a readable training checkpoint"):
+        train_bc(
+            make_actor("nnet", sensors=S, stats=train.stats),
+            train.to_tensordict(),
+            None,
+            BCSettings(epochs=1),
+            run_dir=tmp_path,
+            progress=False,
+        )
+
+
+def test_random_forest_is_fitted_through_the_same_call(datasets):
+    _, train, validation = datasets
+    actor, history = train_bc(
+        make_actor("rf", sensors=S, stats=train.stats),
+        train.to_tensordict(),
+        validation,
+        BCSettings(),
+        progress=False,
+    )
+    assert len(history) == 1 and history[0]["train_loss"] < history[0]["validation_loss"]
+
+
+def test_impossible_settings_fail():
+    with pytest.raises(ValueError, match="learning_rate"):
+        BCSettings(learning_rate=-1.0)
+    with pytest.raises(ValueError, match="epochs"):
+        BCSettings(epochs=0)
+
+
+def test_train_bc_recipe_writes_checkpoints_logs_and_plot(datasets, tmp_path):
+    root, _, _ = datasets
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    args = [
+        sys.executable,
+        str(ROOT / "recipes" / "train_bc.py"),
+        f"hydra.run.dir={tmp_path}",
+        f"train_data={root / 'd_i'}",
+        f"validation_data={root / 'winter'}",
+        "epochs=2",
+        "batch_size=64",
+        "policy=dannet",
+        "sensors=s_pt_sprime",
+    ]
+    result = subprocess.run(args, capture_output=True, text=True, env=env, timeout=300)
+    assert result.returncode == 0, result.stderr[-2000:]
+    for name in ("best.pt", "last.pt", "losses.png", "bc/scalars/validation_loss.csv"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["epochs"] == 2 and metrics["validation_loss"] > 0
+    bad = subprocess.run(
+        [*args[:2], f"hydra.run.dir={tmp_path / 'bad'}", f"train_data={tmp_path / 'nothing'}"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert bad.returncode != 0 and "not a pilerl dataset" in bad.stderr
