@@ -158,3 +158,34 @@ def test_train_bc_recipe_writes_checkpoints_logs_and_plot(datasets, tmp_path):
         timeout=300,
     )
     assert bad.returncode != 0 and "not a pilerl dataset" in bad.stderr
+
+
+def test_nnet_trains_with_levenberg_marquardt_by_default_and_beats_gradient(datasets):
+    _, train, validation = datasets
+    data, losses = train.to_tensordict(), {}
+    for trainer in (None, "gradient"):
+        torch.manual_seed(0)
+        actor = make_actor("nnet", sensors=S, stats=train.stats)
+        _, history = train_bc(
+            actor,
+            data,
+            validation,
+            BCSettings(epochs=3, batch_size=64, trainer=trainer, lm_batch_size=256),
+            progress=False,
+        )
+        losses[trainer] = history[-1]["train_loss"]
+    assert losses[None] < 0.5 * losses["gradient"]
+
+
+def test_trainer_must_fit_the_controller(datasets):
+    _, train, _ = datasets
+    with pytest.raises(ValueError, match="trainer 'fit' is for the random forest"):
+        train_bc(
+            make_actor("dannet", sensors=S, stats=train.stats),
+            train.to_tensordict(),
+            None,
+            BCSettings(epochs=1, trainer="fit"),
+            progress=False,
+        )
+    with pytest.raises(ValueError, match="unknown 'adamw'"):
+        BCSettings(trainer="adamw")

@@ -2,7 +2,10 @@
 
 Paper defaults (``BCSettings``): MSE loss (TorchRL ``BCLoss``), RAdam, batch 512, learning
 rate 1e-3, 150 epochs, seeded. The validation loss (MSE on held-out demonstrations, e.g.
-winter ones) is computed after every epoch. The random forest is fitted once instead.
+winter ones) is computed after every epoch. Each controller has a default trainer
+(``pilerl.policies`` registry): NNet is trained with Levenberg-Marquardt as Halbach et al.
+did (an epoch = ``lm_iterations`` damped Gauss-Newton steps on random mini-batches of
+``lm_batch_size``), the random forest is fitted once, the others by gradient.
 
 Checkpoints (``run_dir``): ``last.pt`` after every epoch (actor, optimiser, epoch, RNG
 state, history) and ``best.pt`` (the actor with the lowest validation loss, readable by
@@ -29,8 +32,10 @@ from pilerl.io import atomic_path
 from pilerl.policies import actor_policy, policy_actor, save_actor
 from pilerl.policies.actors import RandomForestActor
 from pilerl.policies.config import ActorConfig
-from pilerl.policies.registry import build_policy
+from pilerl.policies.levenberg_marquardt import fit_lm
+from pilerl.policies.registry import build_policy, get_spec
 
+TRAINERS = ("gradient", "levenberg_marquardt", "fit")
 RUN_FORMAT = "pilerl.bc_run"
 RUN_VERSION = 1
 EVAL_BATCH = 8192  # rows per forward pass when computing a validation loss
@@ -44,15 +49,26 @@ class BCSettings:
         epochs: passes over the training data.
         batch_size: samples per gradient step.
         learning_rate: RAdam's learning rate.
-        seed: seeds the initial weights, the batch order and dropout.
+        seed: seeds the batch order and dropout (seed the weights before ``make_actor``).
+        trainer: ``gradient``, ``levenberg_marquardt`` or ``fit``; ``None`` = the
+            controller's default.
+        lm_iterations, lm_batch_size: Levenberg-Marquardt steps per epoch and rows per step.
     """
 
     epochs: int = 150
     batch_size: int = 512
     learning_rate: float = 1e-3
     seed: int = 0
+    trainer: str | None = None
+    lm_iterations: int = 10
+    lm_batch_size: int = 4096
 
     def __post_init__(self) -> None:
+        if self.trainer not in (None, *TRAINERS):
+            raise ValueError(
+                f"BCSettings.trainer: unknown {self.trainer!r}; known: "
+                f"{list(TRAINERS)} (None = the controller's default)"
+            )
         if self.epochs < 1 or self.batch_size < 1:
             raise ValueError(f"BCSettings: epochs and batch_size must be >= 1, got {self}")
         if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
@@ -94,10 +110,15 @@ def train_bc(
         run_dir: where ``last.pt`` / ``best.pt`` go; a ``last.pt`` there is resumed.
         logger: a TorchRL logger (``log_scalar(name, value, step)``), or ``None``.
     """
-    if isinstance(actor, RandomForestActor):
+    policy = actor_policy(actor)
+    trainer = settings.trainer or get_spec(policy.config.controller).trainer
+    if isinstance(actor, RandomForestActor) or trainer == "fit":
+        if not isinstance(actor, RandomForestActor):
+            raise ValueError(
+                f"trainer 'fit' is for the random forest, not {policy.config.controller!r}"
+            )
         return _fit_forest(actor, train, validation, run_dir=run_dir, logger=logger)
     torch.manual_seed(settings.seed)
-    policy = actor_policy(actor)
     optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
     history: list[dict] = []
     best = math.inf
@@ -106,6 +127,7 @@ def train_bc(
         policy, optimizer, history, best = _resume(run_dir / "last.pt", settings)
         actor = policy_actor(policy)
     loss_module = BCLoss(actor, loss_function="mse")
+    lm_inputs = policy.controller_inputs(train)[0] if trainer == "levenberg_marquardt" else None
     n = train.batch_size[0]
     epochs = range(len(history), settings.epochs)
     bar = tqdm(
@@ -118,18 +140,29 @@ def train_bc(
     )
     for epoch in bar:
         policy.train()
-        order = torch.randperm(
-            n, generator=torch.Generator().manual_seed(settings.seed * 1_000_003 + epoch)
-        )
-        total = 0.0
-        for start in range(0, n, settings.batch_size):
-            batch = train[order[start : start + settings.batch_size]]
-            loss = loss_module(batch)["loss_bc"]
-            optimizer.zero_grad()
-            loss.backward()
-            optimizer.step()
-            total += float(loss.detach()) * batch.batch_size[0]
-        row = {"epoch": epoch + 1, "train_loss": total / n}
+        generator = torch.Generator().manual_seed(settings.seed * 1_000_003 + epoch)
+        if trainer == "levenberg_marquardt":
+            fit_lm(
+                policy.controller,
+                lm_inputs,
+                train["action"],
+                iterations=settings.lm_iterations,
+                batch_size=min(settings.lm_batch_size, n),
+                generator=generator,
+            )
+            train_loss = validation_loss(actor, train)
+        else:
+            order = torch.randperm(n, generator=generator)
+            total = 0.0
+            for start in range(0, n, settings.batch_size):
+                batch = train[order[start : start + settings.batch_size]]
+                loss = loss_module(batch)["loss_bc"]
+                optimizer.zero_grad()
+                loss.backward()
+                optimizer.step()
+                total += float(loss.detach()) * batch.batch_size[0]
+            train_loss = total / n
+        row = {"epoch": epoch + 1, "train_loss": train_loss}
         if validation is not None:
             row["validation_loss"] = validation_loss(actor, validation)
         history.append(row)
