@@ -72,6 +72,7 @@ def main(cfg: DictConfig) -> None:
         batch_size=config.batch_size,
         learning_rate=config.learning_rate,
         seed=config.seed,
+        trainer=config.trainer,
     )
     actor, history = train_bc(actor, train, validation, settings, run_dir=run_dir, logger=logger)
 

@@ -162,6 +162,8 @@ class TrainBCConfig:
         validation_data: held-out demonstrations for the validation loss, or ``None``.
         epochs, batch_size, learning_rate, seed: ``pilerl.training.BCSettings``.
         logger: ``csv``, ``tensorboard`` or ``none`` (TorchRL loggers).
+        trainer: ``gradient``, ``levenberg_marquardt`` or ``fit``; ``None`` = the
+            controller's default (NNet: Levenberg-Marquardt).
     """
 
     policy: PolicyConfig = field(default_factory=PolicyConfig)
@@ -173,6 +175,7 @@ class TrainBCConfig:
     learning_rate: float = 1e-3
     seed: int = 0
     logger: str = "csv"
+    trainer: str | None = None
     output_dir: str = MISSING
 
 

@@ -119,6 +119,9 @@ def train_bc(
             )
         return _fit_forest(actor, train, validation, run_dir=run_dir, logger=logger)
     torch.manual_seed(settings.seed)
+    # only what training reads: indexing a batch then copies 8 columns, not the whole
+    # transition (next readings, flags, time...)
+    train = train.select(*policy.in_keys, "action")
     optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
     history: list[dict] = []
     best = math.inf
