@@ -19,7 +19,7 @@ import torch  # noqa: E402
 from tensordict import TensorDict  # noqa: E402
 
 from pilerl.policies import make_actor  # noqa: E402
-from pilerl.training import BCSettings, train_bc  # noqa: E402
+from pilerl.training import BCSettings, train_bc, train_bc_ensemble  # noqa: E402
 
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
 ALL = SENSORS + ["boom_pressure", "bucket_pressure", "pump_angle"]
@@ -83,6 +83,22 @@ def main() -> None:
     print(
         f"| pilerl train_bc (BCLoss) | {pilerl:.1f} | {total / pilerl:,.0f} | "
         f"{plain / pilerl:.2f} |"
+    )
+    one = pilerl
+    seeds = 8
+    start = time.perf_counter()
+    train_bc_ensemble(
+        fresh_actor().module.config,
+        list(range(seeds)),
+        data,
+        None,
+        BCSettings(epochs=args.epochs),
+        progress=False,
+    )
+    ensemble = time.perf_counter() - start
+    print(
+        f"| {seeds}-seed ensemble (torch.func) | {ensemble:.1f} | "
+        f"{total * seeds / ensemble:,.0f} | {seeds * one / ensemble:.2f}x vs {seeds} x one seed |"
     )
     projected = PAPER_SAMPLES * PAPER_EPOCHS / (total / pilerl)
     print(

@@ -24,7 +24,8 @@ from pilerl.policies import make_actor
 from pilerl.runtime import limit_threads
 from pilerl.sweeps import is_done, mark_done
 from pilerl.training import BCSettings, train_bc
-from pilerl.training.plots import plot_losses
+from pilerl.training.ensemble import train_bc_ensemble
+from pilerl.training.plots import plot_ensemble, plot_losses
 
 log = logging.getLogger(__name__)
 register_configs()
@@ -52,6 +53,41 @@ def main(cfg: DictConfig) -> None:
         if config.validation_data
         else None
     )
+
+    if config.ensemble_seeds > 1:  # many seeds at once: curves, not a deployable model
+        settings = BCSettings(
+            epochs=config.epochs,
+            batch_size=config.batch_size,
+            learning_rate=config.learning_rate,
+            seed=config.seed,
+        )
+        actor = make_actor(
+            config.policy.name,
+            sensors=config.sensors.s,
+            stats=train_store.stats,
+            attention_sensors=config.sensors.s_prime,
+            options=config.policy.options,
+        )
+        seeds = list(range(config.seed, config.seed + config.ensemble_seeds))
+        result = train_bc_ensemble(actor.module.config, seeds, train, validation, settings)
+        plot_ensemble(
+            result.train_loss,
+            result.validation_loss,
+            run_dir / "ensemble.png",
+            title=f"{config.policy.name}, {len(seeds)} seeds",
+        )
+        final = (
+            result.validation_loss if result.validation_loss is not None else (result.train_loss)
+        )
+        mark_done(
+            run_dir,
+            {
+                "seeds": len(seeds),
+                "final_loss_mean": float(final[:, -1].mean()),
+                "final_loss_std": float(final[:, -1].std()),
+            },
+        )
+        return
 
     # --- controller (initial weights from the seed), logger, training
     torch.manual_seed(config.seed)

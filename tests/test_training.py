@@ -14,7 +14,7 @@ import torch
 from pilerl.data import EpisodeStore, RecordingPlan, build_dataset, record_demonstrations
 from pilerl.policies import load_actor, make_actor
 from pilerl.sim import make_gym_env
-from pilerl.training import BCSettings, train_bc, validation_loss
+from pilerl.training import BCSettings, train_bc, train_bc_ensemble, validation_loss
 
 ROOT = Path(__file__).resolve().parents[1]
 S = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
@@ -189,3 +189,61 @@ def test_trainer_must_fit_the_controller(datasets):
         )
     with pytest.raises(ValueError, match="unknown 'adamw'"):
         BCSettings(trainer="adamw")
+
+
+def test_ensemble_members_equal_separate_runs(datasets):
+    _, train, _ = datasets
+    data = train.to_tensordict()
+    config = make_actor("nnet", sensors=S, stats=train.stats).module.config
+    settings = BCSettings(epochs=2, batch_size=64, trainer="gradient")
+    result = train_bc_ensemble(config, [0, 1], data, None, settings, progress=False)
+    assert result.train_loss.shape == (2, 2)
+    for member, seed in zip(result.members, [0, 1], strict=True):
+        torch.manual_seed(seed)
+        alone, _ = train_bc(
+            make_actor("nnet", sensors=S, stats=train.stats), data, None, settings, progress=False
+        )
+        expected = alone.module.state_dict()
+        assert all(torch.equal(member.state_dict()[k], expected[k]) for k in expected)
+
+
+def test_ensemble_with_dropout_learns_and_members_differ(datasets):
+    _, train, validation = datasets
+    config = make_actor("dannet", sensors=S, stats=train.stats).module.config
+    result = train_bc_ensemble(
+        config,
+        [0, 1, 2],
+        train.to_tensordict(),
+        validation,
+        BCSettings(epochs=6, batch_size=64),
+        progress=False,
+    )
+    assert result.validation_loss.shape == (3, 6)
+    assert (result.validation_loss[:, -1] < result.validation_loss[:, 0]).all()
+    assert len(set(result.validation_loss[:, -1].round(8))) == 3
+
+
+def test_train_bc_recipe_ensemble_mode_plots_mean_and_std(datasets, tmp_path):
+    root, _, _ = datasets
+    args = [
+        sys.executable,
+        str(ROOT / "recipes" / "train_bc.py"),
+        f"hydra.run.dir={tmp_path}",
+        f"train_data={root / 'd_i'}",
+        f"validation_data={root / 'winter'}",
+        "epochs=2",
+        "batch_size=64",
+        "policy=annet",
+        "ensemble_seeds=3",
+    ]
+    result = subprocess.run(
+        args,
+        capture_output=True,
+        text=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert (tmp_path / "ensemble.png").stat().st_size > 0
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["seeds"] == 3 and metrics["final_loss_std"] > 0

@@ -164,6 +164,8 @@ class TrainBCConfig:
         logger: ``csv``, ``tensorboard`` or ``none`` (TorchRL loggers).
         trainer: ``gradient``, ``levenberg_marquardt`` or ``fit``; ``None`` = the
             controller's default (NNet: Levenberg-Marquardt).
+        ensemble_seeds: > 1 trains that many seeds at once (``torch.func``) and plots
+            mean +- std curves (the paper's Fig. 4) instead of one model.
     """
 
     policy: PolicyConfig = field(default_factory=PolicyConfig)
@@ -176,6 +178,7 @@ class TrainBCConfig:
     seed: int = 0
     logger: str = "csv"
     trainer: str | None = None
+    ensemble_seeds: int = 1
     output_dir: str = MISSING
 
 

@@ -31,3 +31,30 @@ def plot_losses(history: list[dict], path: str | Path, *, title: str = "") -> Pa
         fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_ensemble(train_loss, validation_loss, path: str | Path, *, title: str = "") -> Path:
+    """Mean +- std over seeds per epoch (arrays of shape (members, epochs)); the paper's
+    Fig. 4 style."""
+    import numpy as np
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for label, losses in (("train", train_loss), ("validation", validation_loss)):
+        if losses is None:
+            continue
+        epochs = np.arange(1, losses.shape[1] + 1)
+        mean, std = losses.mean(0), losses.std(0)
+        ax.plot(epochs, mean, label=f"{label} (mean of {losses.shape[0]} seeds)")
+        ax.fill_between(epochs, mean - std, mean + std, alpha=0.25)
+    ax.set_xlabel("epoch")
+    ax.set_ylabel("MSE of the controls")
+    ax.set_yscale("log")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    return path
