@@ -54,20 +54,24 @@ def main(cfg: DictConfig) -> None:
         else None
     )
 
+    # --- controller (initial weights from the seed) and settings
+    torch.manual_seed(config.seed)
+    actor = make_actor(
+        config.policy.name,
+        sensors=config.sensors.s,
+        stats=train_store.stats,
+        attention_sensors=config.sensors.s_prime,
+        options=config.policy.options,
+    )
+    settings = BCSettings(
+        epochs=config.epochs,
+        batch_size=config.batch_size,
+        learning_rate=config.learning_rate,
+        seed=config.seed,
+        trainer=config.trainer,
+    )
+
     if config.ensemble_seeds > 1:  # many seeds at once: curves, not a deployable model
-        settings = BCSettings(
-            epochs=config.epochs,
-            batch_size=config.batch_size,
-            learning_rate=config.learning_rate,
-            seed=config.seed,
-        )
-        actor = make_actor(
-            config.policy.name,
-            sensors=config.sensors.s,
-            stats=train_store.stats,
-            attention_sensors=config.sensors.s_prime,
-            options=config.policy.options,
-        )
         seeds = list(range(config.seed, config.seed + config.ensemble_seeds))
         result = train_bc_ensemble(actor.module.config, seeds, train, validation, settings)
         plot_ensemble(
@@ -76,9 +80,7 @@ def main(cfg: DictConfig) -> None:
             run_dir / "ensemble.png",
             title=f"{config.policy.name}, {len(seeds)} seeds",
         )
-        final = (
-            result.validation_loss if result.validation_loss is not None else (result.train_loss)
-        )
+        final = result.train_loss if result.validation_loss is None else result.validation_loss
         mark_done(
             run_dir,
             {
@@ -89,26 +91,11 @@ def main(cfg: DictConfig) -> None:
         )
         return
 
-    # --- controller (initial weights from the seed), logger, training
-    torch.manual_seed(config.seed)
-    actor = make_actor(
-        config.policy.name,
-        sensors=config.sensors.s,
-        stats=train_store.stats,
-        attention_sensors=config.sensors.s_prime,
-        options=config.policy.options,
-    )
+    # --- one model: logger, training
     logger = (
         None
         if config.logger == "none"
         else get_logger(config.logger, logger_name=str(run_dir), experiment_name="bc")
-    )
-    settings = BCSettings(
-        epochs=config.epochs,
-        batch_size=config.batch_size,
-        learning_rate=config.learning_rate,
-        seed=config.seed,
-        trainer=config.trainer,
     )
     actor, history = train_bc(actor, train, validation, settings, run_dir=run_dir, logger=logger)
 

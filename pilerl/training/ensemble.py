@@ -6,7 +6,8 @@ one ``vmap``-ed call per batch (dropout drawn independently per member), and RAd
 the stacked tensors. RAdam is element-wise, so this is exactly N independent optimisers;
 every member sees the same batches in the same order, as N separate runs with the same
 seed would. The result is each member's training and validation loss per epoch, for
-mean +- std curves.
+mean +- std curves. Every member is trained by gradient (RAdam), NNet included: its
+Levenberg-Marquardt default applies to single runs (``train_bc``).
 """
 
 from __future__ import annotations

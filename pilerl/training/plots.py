@@ -8,44 +8,39 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 from pilerl.io import atomic_path  # noqa: E402
 
 
 def plot_losses(history: list[dict], path: str | Path, *, title: str = "") -> Path:
-    """Training and validation MSE per epoch (log scale)."""
-    epochs = [row["epoch"] for row in history]
-    fig, ax = plt.subplots(figsize=(6, 4))
-    ax.plot(epochs, [row["train_loss"] for row in history], marker=".", label="train")
+    """Training and validation MSE per epoch of one run (log scale)."""
+    curves = {"train": np.array([[row["train_loss"] for row in history]])}
     if all("validation_loss" in row for row in history):
-        ax.plot(epochs, [row["validation_loss"] for row in history], marker=".", label="validation")
-    ax.set_xlabel("epoch")
-    ax.set_ylabel("MSE of the controls")
-    ax.set_yscale("log")
-    ax.set_title(title)
-    ax.grid(alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    return path
+        curves["validation"] = np.array([[row["validation_loss"] for row in history]])
+    return _plot_curves(curves, path, title=title)
 
 
-def plot_ensemble(train_loss, validation_loss, path: str | Path, *, title: str = "") -> Path:
-    """Mean +- std over seeds per epoch (arrays of shape (members, epochs)); the paper's
-    Fig. 4 style."""
-    import numpy as np
+def plot_ensemble(
+    train_loss: np.ndarray, validation_loss: np.ndarray | None, path: str | Path, *, title: str = ""
+) -> Path:
+    """Mean +- std over seeds per epoch, arrays (members, epochs): the paper's Fig. 4."""
+    curves = {"train": train_loss}
+    if validation_loss is not None:
+        curves["validation"] = validation_loss
+    return _plot_curves(curves, path, title=title)
 
+
+def _plot_curves(curves: dict[str, np.ndarray], path: str | Path, *, title: str) -> Path:
     fig, ax = plt.subplots(figsize=(6, 4))
-    for label, losses in (("train", train_loss), ("validation", validation_loss)):
-        if losses is None:
-            continue
+    for label, losses in curves.items():
         epochs = np.arange(1, losses.shape[1] + 1)
-        mean, std = losses.mean(0), losses.std(0)
-        ax.plot(epochs, mean, label=f"{label} (mean of {losses.shape[0]} seeds)")
-        ax.fill_between(epochs, mean - std, mean + std, alpha=0.25)
+        mean = losses.mean(0)
+        name = label if losses.shape[0] == 1 else f"{label} (mean of {losses.shape[0]} seeds)"
+        ax.plot(epochs, mean, marker="." if len(epochs) < 40 else None, label=name)
+        if losses.shape[0] > 1:
+            std = losses.std(0)
+            ax.fill_between(epochs, mean - std, mean + std, alpha=0.25)
     ax.set_xlabel("epoch")
     ax.set_ylabel("MSE of the controls")
     ax.set_yscale("log")
