@@ -1,8 +1,9 @@
 """An 8-job sweep's wall time: Hydra's sequential launcher vs the local parallel launcher.
 
 Both sweeps run the same 8 jobs in the same run, so the ratio is measured on the same
-machine state. A job records 12 scripted demonstrations at 100 Hz (~7 s of work,
-like a small real job; a 1-2 s job measures mostly the workers' import time). The parallel launcher
+machine state. A job records 40 scripted demonstrations at 100 Hz (~10 s of work,
+like a small real job; each worker first spends ~5 s importing torch, TorchRL and
+MuJoCo, so jobs of a few seconds measure mostly start-up). The parallel launcher
 (``hydra/launcher=local_parallel``: joblib, 2 processes, one thread each) should approach
 the number of cores on this 2-core machine, less process start-up.
 
@@ -23,7 +24,7 @@ JOBS = 8
 JOB = [
     "recipes/record.py",
     "--multirun",
-    "n_episodes=12",
+    "n_episodes=40",
     "record_hz=100",
     "workers=1",
     "out_dir=${hydra:runtime.output_dir}/demos",
@@ -46,7 +47,7 @@ def sweep(launcher: str | None, sweep_dir: str) -> float:
 
 
 def main() -> None:
-    print(f"{JOBS} record jobs (12 episodes at 100 Hz each), cores={os.cpu_count()}\n")
+    print(f"{JOBS} record jobs (40 episodes at 100 Hz each), cores={os.cpu_count()}\n")
     print("| launcher | wall s | jobs/min | speed-up vs sequential |")
     print("|---|---:|---:|---:|")
     with tempfile.TemporaryDirectory() as tmp:
