@@ -10,6 +10,7 @@ Writes to the run directory: ``best.pt`` (actor with the lowest validation loss)
 
 from __future__ import annotations
 
+import json
 import logging
 from pathlib import Path
 
@@ -22,7 +23,7 @@ from pilerl.config import TrainBCConfig, register_configs
 from pilerl.data import EpisodeStore
 from pilerl.policies import make_actor
 from pilerl.runtime import limit_threads
-from pilerl.sweeps import is_done, mark_done
+from pilerl.sweeps import METRICS_FILE, is_done, mark_done
 from pilerl.training import BCSettings, train_bc
 from pilerl.training.ensemble import train_bc_ensemble
 from pilerl.training.plots import plot_ensemble, plot_losses
@@ -33,13 +34,15 @@ LOGGERS = ("csv", "tensorboard", "none")
 
 
 @hydra.main(config_path="../conf", config_name="train_bc", version_base="1.3")
-def main(cfg: DictConfig) -> None:
+def main(cfg: DictConfig) -> float:
+    """Returns the best validation loss (else the final training loss): the objective of
+    the Optuna sweeper (``hydra/sweeper=bc_optuna``)."""
     limit_threads()
     config: TrainBCConfig = OmegaConf.to_object(cfg)
     run_dir = Path(config.output_dir)
     if is_done(run_dir):
         log.info("%s already finished: skipping (delete done.json to run again)", run_dir)
-        return
+        return _objective(json.loads((run_dir / METRICS_FILE).read_text()))
     if config.logger not in LOGGERS:
         raise ValueError(f"logger: unknown {config.logger!r}; known: {list(LOGGERS)}")
 
@@ -89,7 +92,7 @@ def main(cfg: DictConfig) -> None:
                 "final_loss_std": float(final[:, -1].std()),
             },
         )
-        return
+        return float(final[:, -1].mean())
 
     # --- one model: logger, training
     logger = (
@@ -112,6 +115,15 @@ def main(cfg: DictConfig) -> None:
         metrics["best_validation_loss"] = min(row["validation_loss"] for row in history)
     log.info("%s: %s", run_dir, metrics)
     mark_done(run_dir, metrics)
+    return _objective(metrics)
+
+
+def _objective(metrics: dict) -> float:
+    return float(
+        metrics.get(
+            "best_validation_loss", metrics.get("train_loss", metrics.get("final_loss_mean"))
+        )
+    )
 
 
 if __name__ == "__main__":

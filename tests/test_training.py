@@ -247,3 +247,38 @@ def test_train_bc_recipe_ensemble_mode_plots_mean_and_std(datasets, tmp_path):
     assert (tmp_path / "ensemble.png").stat().st_size > 0
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert metrics["seeds"] == 3 and metrics["final_loss_std"] > 0
+
+
+def test_optuna_sweeper_searches_the_learning_rate(datasets, tmp_path):
+    root, _, _ = datasets
+    args = [
+        sys.executable,
+        str(ROOT / "recipes" / "train_bc.py"),
+        "--multirun",
+        "hydra/sweeper=bc_optuna",
+        "hydra.sweeper.n_trials=3",
+        f"hydra.sweep.dir={tmp_path}",
+        f"train_data={root / 'd_i'}",
+        f"validation_data={root / 'winter'}",
+        "epochs=2",
+        "policy=nnetv2",
+        "logger=none",
+    ]
+    result = subprocess.run(
+        args,
+        capture_output=True,
+        text=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    import yaml
+
+    best = yaml.safe_load((tmp_path / "optimization_results.yaml").read_text())
+    assert 1e-4 <= best["best_params"]["learning_rate"] <= 1e-2
+    assert best["best_params"]["batch_size"] in (128, 256, 512)
+    losses = [
+        json.loads((tmp_path / str(i) / "metrics.json").read_text())["best_validation_loss"]
+        for i in range(3)
+    ]
+    assert best["best_value"] == pytest.approx(min(losses))
