@@ -90,3 +90,11 @@ def test_every_policy_and_sensor_set_composes(policy, sensors):
     assert cfg.policy.name == policy
     assert "boom_angle" in cfg.sensors.s
     assert (cfg.sensors.s_prime is None) == (sensors != "s_pt_sprime")
+
+
+def test_experiment_overlay_sets_the_paper_experiment_and_its_sweep():
+    cfg = compose_config("train_bc", ["+experiment=exp4_offline_validation"])
+    assert cfg.ensemble_seeds == 100 and cfg.epochs == 150
+    assert cfg.sensors.s[-1] == "telescope_pressure"
+    assert cfg.hydra.sweeper.params.policy == "nnetv2,annet,dannet"
+    assert "d_ii_summer" in cfg.hydra.sweeper.params.train_data

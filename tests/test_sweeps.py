@@ -102,3 +102,18 @@ def test_multirun_with_the_local_parallel_launcher_then_summary(tmp_path):
     assert summary.returncode == 0, summary.stderr
     rows = (tmp_path / "sweep_summary.csv").read_text().splitlines()
     assert rows[0].startswith("operator.approach_throttle,n_jobs,") and len(rows) == 3
+
+
+def test_multirun_with_submitit_local_executor(tmp_path):
+    result = run(
+        SCOOP[0],
+        "--multirun",
+        *SCOOP[1:],
+        "hydra/launcher=submitit_local_2",
+        "seed=0,1",
+        f"hydra.sweep.dir={tmp_path}",
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert sorted(p.parent.name for p in tmp_path.glob("*/done.json")) == ["0", "1"]
+    metrics = json.loads((tmp_path / "0" / "metrics.json").read_text())
+    assert metrics["summer_success"] == 1.0
