@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 import torch
+import yaml
 
 from pilerl.data import EpisodeStore, RecordingPlan, build_dataset, record_demonstrations
 from pilerl.policies import load_actor, make_actor
@@ -43,6 +44,23 @@ def datasets(tmp_path_factory):
         stores["summer"], root / "d_i", successful_only=False, rate_hz=None, progress=False
     )
     return root, train, stores["winter"].to_tensordict()
+
+
+def train_bc_recipe(*overrides: str, data_root: Path | None = None):
+    """Run recipes/train_bc.py with ``overrides`` (and the fixture's data, if given)."""
+    data = (
+        []
+        if data_root is None
+        else [f"train_data={data_root / 'd_i'}", f"validation_data={data_root / 'winter'}"]
+    )
+    args = [sys.executable, str(ROOT / "recipes" / "train_bc.py"), *overrides, *data]
+    return subprocess.run(
+        args,
+        capture_output=True,
+        text=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+        timeout=300,
+    )
 
 
 def test_bc_lowers_the_validation_loss(datasets):
@@ -132,31 +150,20 @@ def test_impossible_settings_fail():
 
 def test_train_bc_recipe_writes_checkpoints_logs_and_plot(datasets, tmp_path):
     root, _, _ = datasets
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    args = [
-        sys.executable,
-        str(ROOT / "recipes" / "train_bc.py"),
+    result = train_bc_recipe(
         f"hydra.run.dir={tmp_path}",
-        f"train_data={root / 'd_i'}",
-        f"validation_data={root / 'winter'}",
         "epochs=2",
         "batch_size=64",
         "policy=dannet",
         "sensors=s_pt_sprime",
-    ]
-    result = subprocess.run(args, capture_output=True, text=True, env=env, timeout=300)
+        data_root=root,
+    )
     assert result.returncode == 0, result.stderr[-2000:]
     for name in ("best.pt", "last.pt", "losses.png", "bc/scalars/validation_loss.csv"):
         assert (tmp_path / name).stat().st_size > 0, name
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert metrics["epochs"] == 2 and metrics["validation_loss"] > 0
-    bad = subprocess.run(
-        [*args[:2], f"hydra.run.dir={tmp_path / 'bad'}", f"train_data={tmp_path / 'nothing'}"],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=300,
-    )
+    bad = train_bc_recipe(f"hydra.run.dir={tmp_path / 'bad'}", f"train_data={tmp_path / 'no'}")
     assert bad.returncode != 0 and "not a pilerl dataset" in bad.stderr
 
 
@@ -225,23 +232,13 @@ def test_ensemble_with_dropout_learns_and_members_differ(datasets):
 
 def test_train_bc_recipe_ensemble_mode_plots_mean_and_std(datasets, tmp_path):
     root, _, _ = datasets
-    args = [
-        sys.executable,
-        str(ROOT / "recipes" / "train_bc.py"),
+    result = train_bc_recipe(
         f"hydra.run.dir={tmp_path}",
-        f"train_data={root / 'd_i'}",
-        f"validation_data={root / 'winter'}",
         "epochs=2",
         "batch_size=64",
         "policy=annet",
         "ensemble_seeds=3",
-    ]
-    result = subprocess.run(
-        args,
-        capture_output=True,
-        text=True,
-        env={**os.environ, "OMP_NUM_THREADS": "1"},
-        timeout=300,
+        data_root=root,
     )
     assert result.returncode == 0, result.stderr[-2000:]
     assert (tmp_path / "ensemble.png").stat().st_size > 0
@@ -251,29 +248,17 @@ def test_train_bc_recipe_ensemble_mode_plots_mean_and_std(datasets, tmp_path):
 
 def test_optuna_sweeper_searches_the_learning_rate(datasets, tmp_path):
     root, _, _ = datasets
-    args = [
-        sys.executable,
-        str(ROOT / "recipes" / "train_bc.py"),
+    result = train_bc_recipe(
         "--multirun",
         "hydra/sweeper=bc_optuna",
         "hydra.sweeper.n_trials=3",
         f"hydra.sweep.dir={tmp_path}",
-        f"train_data={root / 'd_i'}",
-        f"validation_data={root / 'winter'}",
         "epochs=2",
         "policy=nnetv2",
         "logger=none",
-    ]
-    result = subprocess.run(
-        args,
-        capture_output=True,
-        text=True,
-        env={**os.environ, "OMP_NUM_THREADS": "1"},
-        timeout=300,
+        data_root=root,
     )
     assert result.returncode == 0, result.stderr[-3000:]
-    import yaml
-
     best = yaml.safe_load((tmp_path / "optimization_results.yaml").read_text())
     assert 1e-4 <= best["best_params"]["learning_rate"] <= 1e-2
     assert best["best_params"]["batch_size"] in (128, 256, 512)
