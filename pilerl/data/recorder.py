@@ -11,7 +11,6 @@ import dataclasses
 import math
 import os
 from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import gymnasium as gym
@@ -22,6 +21,7 @@ from tqdm import tqdm
 
 from pilerl.evaluation import Episode, run_episode
 from pilerl.operators import ScriptedScoopOperator, phase_index, sample_style
+from pilerl.runtime import process_pool
 from pilerl.sim import make_gym_env
 
 from .schema import EpisodeMeta, make_episode
@@ -138,7 +138,7 @@ def _episodes(
         for i in indices:
             yield _record_one(plan, i)
         return
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    with process_pool(workers) as pool:
         yield from pool.map(_record_one, [plan] * len(indices), indices)
 
 

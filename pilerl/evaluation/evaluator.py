@@ -1,0 +1,200 @@
+"""Closed-loop evaluation: run a controller for N seeded episodes per condition.
+
+Episode i of every condition starts from the same seeded pose (start distance, approach
+angle), so controllers and conditions are compared on paired starts. Episodes run in
+worker processes (one thread each); the records come back in episode order, so the result
+does not depend on the number of workers.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import statistics
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from tensordict import TensorDict
+from tqdm import tqdm
+
+from pilerl.io import atomic_path, write_text_atomic
+from pilerl.operators import OperatorStyle, ScriptedScoopOperator
+from pilerl.runtime import process_pool
+from pilerl.sim import make_gym_env
+
+from .metrics import wilson_interval
+
+
+@dataclass(frozen=True)
+class ScriptedController:
+    """The scripted operator with a fixed style."""
+
+    style: OperatorStyle = field(default_factory=OperatorStyle)
+    name: str = "scripted"
+
+    def build(self, dt: float):
+        return ScriptedScoopOperator(self.style, dt=dt)
+
+
+@dataclass(frozen=True)
+class ActorController:
+    """A saved actor (``best.pt``) acting deterministically from the observation."""
+
+    checkpoint: str
+    name: str = "actor"
+
+    def build(self, dt: float):
+        return _ActorOperator(self.checkpoint)
+
+
+class _ActorOperator:
+    def __init__(self, checkpoint: str) -> None:
+        from pilerl.policies import load_actor
+
+        self.actor = load_actor(checkpoint)
+
+    def reset(self) -> None:
+        pass
+
+    def act(self, obs: dict) -> np.ndarray:
+        with torch.no_grad():
+            td = TensorDict({k: torch.as_tensor(v) for k, v in obs.items()}, [])
+            return self.actor(td)["action"].numpy()
+
+
+@dataclass(frozen=True)
+class EvaluationPlan:
+    """What to evaluate.
+
+    Attributes:
+        simulator: plugin name.
+        env_kwargs: simulator arguments except ``condition``.
+        conditions: condition names, each evaluated on the same seeded starts.
+        episodes: episodes per condition.
+        seed: base seed; episode i uses env seed ``seed * 100_000 + i``.
+    """
+
+    simulator: str
+    env_kwargs: dict
+    conditions: tuple[str, ...]
+    episodes: int
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.episodes < 1 or not self.conditions:
+            raise ValueError(f"EvaluationPlan: need >= 1 episode and >= 1 condition, got {self}")
+
+
+def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -> dict:
+    torch.set_num_threads(1)
+    env = make_gym_env(plan.simulator, **plan.env_kwargs, condition=condition)
+    operator = controller.build(float(env.unwrapped.dt))
+    operator.reset()
+    seed = plan.seed * 100_000 + index
+    obs, start = env.reset(seed=seed)
+    total, max_slip, time_to_finish = 0.0, 0.0, math.nan
+    while True:
+        obs, reward, terminated, truncated, info = env.step(operator.act(obs))
+        total += float(reward)
+        max_slip = max(max_slip, float(info.get("wheel_slip_m_s", 0.0)))
+        if terminated or truncated:
+            if info.get("scoop_finished"):
+                time_to_finish = float(info["elapsed_s"])
+            break
+    env.close()
+    return {
+        "controller": controller.name,
+        "condition": condition,
+        "episode": index,
+        "seed": seed,
+        "start_distance_m": float(start.get("start_distance_m", math.nan)),
+        "approach_angle_rad": float(start.get("approach_angle_rad", math.nan)),
+        "fill_fraction": float(info["fill_fraction"]),
+        "success": bool(info["success"]),
+        "scoop_finished": bool(info.get("scoop_finished", False)),
+        "elapsed_s": float(info["elapsed_s"]),
+        "time_to_finish_s": time_to_finish,
+        "max_wheel_slip_m_s": max_slip,
+        "spilled_kg": float(info.get("spilled_kg", 0.0)),
+        "return": total,
+    }
+
+
+def evaluate(
+    controller, plan: EvaluationPlan, *, workers: int | None = None, progress: bool = True
+) -> list[dict]:
+    """One record per episode, ordered by condition then episode."""
+    jobs = [(c, i) for c in plan.conditions for i in range(plan.episodes)]
+    workers = workers if workers is not None else min(os.cpu_count() or 1, len(jobs))
+    bar = tqdm(
+        total=len(jobs), desc=f"evaluating {controller.name}", unit="episode", disable=not progress
+    )
+    records = []
+    if workers <= 1:
+        for condition, index in jobs:
+            records.append(_run_episode(controller, plan, condition, index))
+            bar.update()
+    else:
+        with process_pool(workers) as pool:
+            for record in pool.map(
+                _run_episode, *zip(*[(controller, plan, c, i) for c, i in jobs], strict=True)
+            ):
+                records.append(record)
+                bar.update()
+    bar.close()
+    return records
+
+
+def summarize(records: Sequence[dict], *, confidence: float = 0.95) -> dict[str, dict]:
+    """Per condition: success rate with its Wilson interval, fill, time, slip and spill."""
+    summary = {}
+    for condition in dict.fromkeys(r["condition"] for r in records):
+        rows = [r for r in records if r["condition"] == condition]
+        successes = sum(r["success"] for r in rows)
+        low, high = wilson_interval(successes, len(rows), confidence=confidence)
+        fills = [r["fill_fraction"] for r in rows]
+        finish = [r["time_to_finish_s"] for r in rows if r["success"]]
+        summary[condition] = {
+            "episodes": len(rows),
+            "successes": successes,
+            "success_rate": successes / len(rows),
+            "success_low": low,
+            "success_high": high,
+            "fill_mean": statistics.fmean(fills),
+            "fill_median": statistics.median(fills),
+            "fill_min": min(fills),
+            "fill_max": max(fills),
+            "time_to_fill_s_mean": statistics.fmean(finish) if finish else math.nan,
+            "max_wheel_slip_m_s_mean": statistics.fmean(r["max_wheel_slip_m_s"] for r in rows),
+            "spilled_kg_mean": statistics.fmean(r["spilled_kg"] for r in rows),
+        }
+    return summary
+
+
+def write_results(records: Sequence[dict], summary: dict, out_dir: str | Path) -> None:
+    """``episodes.csv`` (one row per episode) and ``summary.json``, atomically."""
+    import json
+
+    out_dir = Path(out_dir)
+    columns = list(records[0])
+    lines = [",".join(columns)] + [",".join(str(r[c]) for c in columns) for r in records]
+    with atomic_path(out_dir / "episodes.csv") as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
+    clean = {
+        c: {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in s.items()}
+        for c, s in summary.items()
+    }
+    write_text_atomic(out_dir / "summary.json", json.dumps(clean, indent=1, allow_nan=False))
+
+
+__all__ = [
+    "ActorController",
+    "EvaluationPlan",
+    "ScriptedController",
+    "evaluate",
+    "summarize",
+    "write_results",
+]
