@@ -21,6 +21,7 @@ from pilerl.data import (
     make_replay_buffer,
     record_demonstrations,
 )
+from pilerl.sim import make_gym_env
 
 SENSORS = {"boom_angle": "rad", "drive_pressure": "MPa"}
 CONTROLS = ["boom", "bucket", "throttle"]
@@ -208,19 +209,10 @@ def record(tmp_path, name, workers):
     plan = RecordingPlan(
         "pile_loader", {"condition": "summer", "control_hz": 20.0}, n_episodes=2, seed=3
     )
-    store = EpisodeStore.create(tmp_path / name, sensors={}, controls=CONTROLS)
-    store._index["sensors"] = {  # the pile loader's seven sensors
-        k: ""
-        for k in (
-            "boom_angle",
-            "bucket_angle",
-            "drive_pressure",
-            "telescope_pressure",
-            "boom_pressure",
-            "bucket_pressure",
-            "pump_angle",
-        )
-    }
+    env = make_gym_env("pile_loader").unwrapped  # the store declares the env's sensors
+    store = EpisodeStore.create(
+        tmp_path / name, sensors=env.sensor_units, controls=list(env.control_names)
+    )
     record_demonstrations(store, plan, workers=workers, progress=False)
     return store
 

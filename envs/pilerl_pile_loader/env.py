@@ -131,11 +131,8 @@ class PileLoadingEnv(gym.Env):
         )
         spec = load_machine_spec()
         spec.option.timestep = 1.0 / physics_hz
-        spec.body("payload").pos = [
-            *self.soil.bucket.centroid_xz()[:1],
-            0.0,
-            self.soil.bucket.centroid_xz()[1],
-        ]
+        load_x, load_z = self.soil.bucket.centroid_xz()  # the load sits at the inside's centroid
+        spec.body("payload").pos = [load_x, 0.0, load_z]
         self.soil.add_to_spec(spec)
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)

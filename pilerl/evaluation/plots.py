@@ -4,14 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+from pilerl.figures import save_figure
 
-from pilerl.io import atomic_path  # noqa: E402
-
-from .episode import Episode  # noqa: E402
+from .episode import Episode
 
 ANGLES = ("boom_angle", "bucket_angle", "pump_angle")
 PRESSURES = ("drive_pressure", "telescope_pressure", "boom_pressure", "bucket_pressure")
@@ -49,9 +46,4 @@ def plot_scoop(episodes: dict[str, Episode], path: str | Path) -> Path:
         for ax in axes[:, col]:
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, loc="upper left")
-    fig.tight_layout()
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import yaml
 
-from pilerl.io import atomic_path, write_text_atomic
+from pilerl.io import write_text_atomic
 
 from .completion import METRICS_FILE
 
@@ -137,10 +137,9 @@ def _write_markdown(
 
 
 def _plot(path: Path, rows: list[dict], group_keys: list[str], metric: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from pilerl.figures import save_figure
 
     labels = [", ".join(f"{k}={row[k]}" for k in group_keys) or "all" for row in rows]
     means = [row.get(f"{metric}_mean", math.nan) for row in rows]
@@ -150,10 +149,7 @@ def _plot(path: Path, rows: list[dict], group_keys: list[str], metric: str) -> N
     ax.set_xticks(range(len(rows)), labels, rotation=30, ha="right", fontsize=8)
     ax.set_ylabel(f"{metric} (mean ± std over jobs)")
     ax.grid(axis="y", alpha=0.3)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -4,13 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from pilerl.io import atomic_path  # noqa: E402
+from pilerl.figures import save_figure
 
 
 def plot_losses(history: list[dict], path: str | Path, *, title: str = "") -> Path:
@@ -47,9 +44,4 @@ def _plot_curves(curves: dict[str, np.ndarray], path: str | Path, *, title: str)
     ax.set_title(title)
     ax.grid(alpha=0.3)
     ax.legend()
-    fig.tight_layout()
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
