@@ -2,10 +2,13 @@
 
     python recipes/train_bc.py policy=dannet sensors=s_pt_sprime
     python recipes/train_bc.py policy=nnetv2 train_data=data/datasets/d_i_summer epochs=20
+    python recipes/train_bc.py policy=rf evaluation.episodes=10   # + closed-loop test
 
 Writes to the run directory: ``best.pt`` (actor with the lowest validation loss),
 ``last.pt`` (resumable training state), ``losses.png``, the TorchRL CSV log and
-``metrics.json``. Running again in the same directory resumes from ``last.pt``.
+``metrics.json``; with ``evaluation.episodes > 0`` the closed-loop test of ``best.pt``
+goes to ``evaluation/`` (see ``recipes/evaluate.py``). Running again in the same
+directory resumes from ``last.pt``.
 """
 
 from __future__ import annotations
@@ -21,11 +24,18 @@ from torchrl.record.loggers import get_logger
 
 from pilerl.config import TrainBCConfig, register_configs
 from pilerl.data import EpisodeStore
-from pilerl.policies import make_actor
+from pilerl.evaluation.closed_loop import run_closed_loop
+from pilerl.evaluation.evaluator import ActorController
+from pilerl.policies import controller_inputs, get_spec, make_actor
 from pilerl.runtime import limit_threads
 from pilerl.sweeps import METRICS_FILE, is_done, mark_done
-from pilerl.training import BCSettings, train_bc
-from pilerl.training.ensemble import train_bc_ensemble
+from pilerl.training import (
+    BCSettings,
+    epochs_for_steps,
+    train_bc,
+    train_bc_ensemble,
+    write_ensemble_curves,
+)
 from pilerl.training.plots import plot_ensemble, plot_losses
 
 log = logging.getLogger(__name__)
@@ -43,6 +53,11 @@ def main(cfg: DictConfig) -> float:
     if is_done(run_dir):
         log.info("%s already finished: skipping (delete done.json to run again)", run_dir)
         return _objective(json.loads((run_dir / METRICS_FILE).read_text()))
+    if config.ensemble_seeds > 1 and config.evaluation.episodes > 0:
+        raise ValueError(
+            "evaluation.episodes: an ensemble (ensemble_seeds > 1) has no one "
+            "controller to test in closed loop; set evaluation.episodes=0"
+        )
     if config.logger not in LOGGERS:
         raise ValueError(f"logger: unknown {config.logger!r}; known: {list(LOGGERS)}")
 
@@ -59,15 +74,20 @@ def main(cfg: DictConfig) -> float:
 
     # --- controller (initial weights from the seed) and settings
     torch.manual_seed(config.seed)
+    sensors, attention_sensors = controller_inputs(
+        config.policy.name, config.sensors.s, config.sensors.s_prime
+    )
     actor = make_actor(
         config.policy.name,
-        sensors=config.sensors.s,
+        sensors=sensors,
         stats=train_store.stats,
-        attention_sensors=config.sensors.s_prime,
+        attention_sensors=attention_sensors,
         options=config.policy.options,
     )
+    if config.evaluation.episodes > 0:
+        plan = config.evaluation.plan(config.env)  # bad evaluation settings fail now
     settings = BCSettings(
-        epochs=config.epochs,
+        epochs=_epochs(config, train.batch_size[0]),
         batch_size=config.batch_size,
         learning_rate=config.learning_rate,
         seed=config.seed,
@@ -83,6 +103,7 @@ def main(cfg: DictConfig) -> float:
             run_dir / "ensemble.png",
             title=f"{config.policy.name}, {len(seeds)} seeds",
         )
+        write_ensemble_curves(result, run_dir / "ensemble_curves.csv")
         final = result.train_loss if result.validation_loss is None else result.validation_loss
         mark_done(
             run_dir,
@@ -114,8 +135,30 @@ def main(cfg: DictConfig) -> float:
         metrics["validation_loss"] = final["validation_loss"]
         metrics["best_validation_loss"] = min(row["validation_loss"] for row in history)
     log.info("%s: %s", run_dir, metrics)
+
+    # --- last step: the trained controller in closed loop
+    if config.evaluation.episodes > 0:
+        summary = run_closed_loop(
+            ActorController(str(run_dir / "best.pt"), name=config.policy.name),
+            plan,
+            run_dir / "evaluation",
+            workers=config.evaluation.workers,
+            videos=config.evaluation.videos,
+            render_size=(config.evaluation.render_height, config.evaluation.render_width),
+        )
+        metrics |= {f"{name}_success_rate": row["success_rate"] for name, row in summary.items()}
     mark_done(run_dir, metrics)
     return _objective(metrics)
+
+
+def _epochs(config: TrainBCConfig, rows: int) -> int:
+    """``epochs``, or as many as give about ``gradient_steps`` steps (gradient training)."""
+    trainer = config.trainer or get_spec(config.policy.name).trainer
+    if config.gradient_steps is None or trainer != "gradient":
+        return config.epochs
+    epochs = epochs_for_steps(rows, config.batch_size, config.gradient_steps)
+    log.info("gradient_steps=%d: %d epochs of %d rows", config.gradient_steps, epochs, rows)
+    return epochs
 
 
 def _objective(metrics: dict) -> float:

@@ -94,7 +94,16 @@ def test_every_policy_and_sensor_set_composes(policy, sensors):
 
 def test_experiment_overlay_sets_the_paper_experiment_and_its_sweep():
     cfg = compose_config("train_bc", ["+experiment=exp4_offline_validation"])
-    assert cfg.ensemble_seeds == 100 and cfg.epochs == 150
+    assert cfg.ensemble_seeds == 100 and cfg.gradient_steps == 5000
     assert cfg.sensors.s[-1] == "telescope_pressure"
     assert cfg.hydra.sweeper.params.policy == "nnetv2,annet,dannet"
     assert "d_ii_summer" in cfg.hydra.sweeper.params.train_data
+
+
+@pytest.mark.parametrize("experiment", sorted(p.stem for p in (CONF / "experiment").glob("*.yaml")))
+def test_every_experiment_overlay_composes_with_its_sweep(experiment):
+    cfg = compose_config("train_bc", [f"+experiment={experiment}"])
+    assert cfg.hydra.sweep.dir == f"multirun/{experiment}"
+    assert "policy" in cfg.hydra.sweeper.params
+    if not experiment.startswith("exp4"):  # the closed-loop experiments test in winter
+        assert cfg.evaluation.episodes > 0 and "winter_c" in cfg.evaluation.conditions

@@ -12,38 +12,11 @@ import pytest
 import torch
 import yaml
 
-from pilerl.data import EpisodeStore, RecordingPlan, build_dataset, record_demonstrations
 from pilerl.policies import load_actor, make_actor
-from pilerl.sim import make_gym_env
 from pilerl.training import BCSettings, train_bc, train_bc_ensemble, validation_loss
 
 ROOT = Path(__file__).resolve().parents[1]
 S = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
-
-
-@pytest.fixture(scope="module")
-def datasets(tmp_path_factory):
-    """4 recorded summer demonstrations at 20 Hz as D_I, and 2 winter ones to validate."""
-    root = tmp_path_factory.mktemp("bc")
-    env = make_gym_env("pile_loader").unwrapped
-    stores = {}
-    for name, condition, n in (("summer", "summer", 4), ("winter", "winter_c", 2)):
-        store = EpisodeStore.create(
-            root / name, sensors=env.sensor_units, controls=list(env.control_names)
-        )
-        plan = RecordingPlan(
-            "pile_loader",
-            {"condition": condition, "control_hz": 20.0},
-            n_episodes=n,
-            seed=5,
-            trigger_sensor="telescope_pressure",
-        )
-        record_demonstrations(store, plan, workers=1, progress=False)
-        stores[name] = store
-    train = build_dataset(
-        stores["summer"], root / "d_i", successful_only=False, rate_hz=None, progress=False
-    )
-    return root, train, stores["winter"].to_tensordict()
 
 
 def train_bc_recipe(*overrides: str, data_root: Path | None = None):

@@ -2,8 +2,10 @@
 
 from .schema import (
     BuildDatasetConfig,
+    ClosedLoopConfig,
     DatasetConfig,
     EnvConfig,
+    EvaluateConfig,
     PolicyConfig,
     RecordConfig,
     ScoopConfig,
@@ -18,6 +20,8 @@ __all__ = [
     "SensorsConfig",
     "TrainBCConfig",
     "BuildDatasetConfig",
+    "ClosedLoopConfig",
+    "EvaluateConfig",
     "DatasetConfig",
     "EnvConfig",
     "RecordConfig",

@@ -154,6 +154,61 @@ class SensorsConfig:
 
 
 @dataclass
+class ClosedLoopConfig:
+    """Closed-loop evaluation: N seeded episodes per condition (``pilerl.evaluation``).
+
+    Attributes:
+        conditions: conditions to test in; two or more ``winter_*`` are also pooled.
+        episodes: episodes per condition (0 = no closed-loop evaluation).
+        seed: base seed; episode i starts from the same pose in every condition.
+        workers: episode processes (``None`` = one per core).
+        videos: render the median-fill episode and the first failure of each condition.
+        render_width, render_height: video frame size [px].
+    """
+
+    conditions: list[str] = field(
+        default_factory=lambda: ["summer", "winter_a", "winter_b", "winter_c", "winter_d"]
+    )
+    episodes: int = 10
+    seed: int = 1
+    workers: int | None = None
+    videos: bool = False
+    render_width: int = 640
+    render_height: int = 360
+
+    def plan(self, env: EnvConfig):
+        """The ``EvaluationPlan`` of this config in ``env`` (its condition is replaced)."""
+        from pilerl.evaluation.evaluator import EvaluationPlan
+
+        kwargs = env.make_kwargs()
+        kwargs.pop("condition")
+        return EvaluationPlan(
+            env.simulator, kwargs, tuple(self.conditions), self.episodes, seed=self.seed
+        )
+
+
+@dataclass
+class EvaluateConfig:
+    """The evaluate recipe: a controller tested in closed loop.
+
+    Attributes:
+        env: simulator arguments (``env.condition`` is replaced by each evaluated one).
+        checkpoint: a saved actor (``best.pt`` of train_bc or finetune); ``None`` evaluates
+            the scripted operator with the ``operator`` style.
+        name: the controller's name in plots and tables (default: from the checkpoint).
+        operator: scripted operator style (used when ``checkpoint`` is ``None``).
+        evaluation: conditions, episodes, seed, workers, videos.
+    """
+
+    env: EnvConfig = field(default_factory=EnvConfig)
+    checkpoint: str | None = None
+    name: str | None = None
+    operator: OperatorStyle = field(default_factory=OperatorStyle)
+    evaluation: ClosedLoopConfig = field(default_factory=ClosedLoopConfig)
+    output_dir: str = MISSING
+
+
+@dataclass
 class TrainBCConfig:
     """The train_bc recipe: behaviour cloning of one controller on one dataset.
 
@@ -161,11 +216,18 @@ class TrainBCConfig:
         train_data: training dataset directory (``recipes/build_dataset.py``).
         validation_data: held-out demonstrations for the validation loss, or ``None``.
         epochs, batch_size, learning_rate, seed: ``pilerl.training.BCSettings``.
+        gradient_steps: if set, replaces ``epochs`` for gradient training by as many epochs
+            as give about this many steps (at least one), so datasets of different sizes
+            get the same training budget (D_I has 27x the rows of D_II). Levenberg-Marquardt
+            rounds and the forest's fit do not depend on the dataset size; they keep
+            ``epochs``.
         logger: ``csv``, ``tensorboard`` or ``none`` (TorchRL loggers).
         trainer: ``gradient``, ``levenberg_marquardt`` or ``fit``; ``None`` = the
             controller's default (NNet: Levenberg-Marquardt).
         ensemble_seeds: > 1 trains that many seeds at once (``torch.func``) and plots
             mean +- std curves (the paper's Fig. 4) instead of one model.
+        env, evaluation: the closed-loop test of the trained controller (the last step;
+            ``evaluation.episodes: 0`` skips it), written to ``<run dir>/evaluation``.
     """
 
     policy: PolicyConfig = field(default_factory=PolicyConfig)
@@ -173,12 +235,15 @@ class TrainBCConfig:
     train_data: str = MISSING
     validation_data: str | None = None
     epochs: int = 150
+    gradient_steps: int | None = None
     batch_size: int = 512
     learning_rate: float = 1e-3
     seed: int = 0
     logger: str = "csv"
     trainer: str | None = None
     ensemble_seeds: int = 1
+    env: EnvConfig = field(default_factory=EnvConfig)
+    evaluation: ClosedLoopConfig = field(default_factory=lambda: ClosedLoopConfig(episodes=0))
     output_dir: str = MISSING
 
 
@@ -190,6 +255,7 @@ def register_configs() -> None:
     store.store(name="build_dataset_schema", node=BuildDatasetConfig)
     store.store(name="teleop_schema", node=TeleopConfig)
     store.store(name="train_bc_schema", node=TrainBCConfig)
+    store.store(name="evaluate_schema", node=EvaluateConfig)
     store.store(group="policy", name="policy_schema", node=PolicyConfig)
     store.store(group="sensors", name="sensors_schema", node=SensorsConfig)
     store.store(group="env", name="env_schema", node=EnvConfig)

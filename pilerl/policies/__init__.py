@@ -33,6 +33,7 @@ from .registry import (
     UnknownControllerError,
     available_controllers,
     build_policy,
+    controller_inputs,
     get_spec,
     make_controller,
 )
@@ -65,6 +66,7 @@ __all__ = [
     "actor_policy",
     "available_controllers",
     "build_policy",
+    "controller_inputs",
     "fit_lm",
     "get_spec",
     "load_actor",

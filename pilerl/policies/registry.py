@@ -90,6 +90,21 @@ def build_policy(config: ActorConfig) -> SensorPolicy:
     return SensorPolicy(config, controller)
 
 
+def controller_inputs(
+    name: str, sensors: Sequence[str], attention_sensors: Sequence[str] | None
+) -> tuple[list[str], list[str] | None]:
+    """The (s, s') a controller reads when a sensor set names s and s'.
+
+    Attention controllers read s and s' as given. A controller without attention has no
+    place for s': its sensors become plain inputs, s followed by those of s' not in s (the
+    paper's "NNetV2 with p_t and s'" row; its Fig. 4 calls training with s' "fusion").
+    """
+    sensors = list(sensors)
+    if attention_sensors is None or get_spec(name).uses_attention:
+        return sensors, None if attention_sensors is None else list(attention_sensors)
+    return sensors + [s for s in attention_sensors if s not in sensors], None
+
+
 def make_controller(
     name: str,
     *,

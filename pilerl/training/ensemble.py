@@ -15,6 +15,7 @@ from __future__ import annotations
 import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -22,6 +23,7 @@ from tensordict import TensorDict
 from torch.func import functional_call, stack_module_state, vmap
 from tqdm import tqdm
 
+from pilerl.io import atomic_path
 from pilerl.policies import SensorPolicy
 from pilerl.policies.config import ActorConfig
 from pilerl.policies.registry import build_policy
@@ -110,3 +112,27 @@ def train_bc_ensemble(
         validation_loss=np.stack(val_hist, axis=1) if val_hist else None,
         members=members,
     )
+
+
+def write_ensemble_curves(result: EnsembleResult, path: str | Path) -> Path:
+    """Mean and std over members per epoch, as CSV: ``epoch, train_mean, train_std`` and,
+    with validation data, ``validation_mean, validation_std``."""
+    columns = {
+        "epoch": np.arange(1, result.train_loss.shape[1] + 1),
+        "train_mean": result.train_loss.mean(0),
+        "train_std": result.train_loss.std(0),
+    }
+    if result.validation_loss is not None:
+        columns["validation_mean"] = result.validation_loss.mean(0)
+        columns["validation_std"] = result.validation_loss.std(0)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        np.savetxt(
+            tmp,
+            np.column_stack(list(columns.values())),
+            delimiter=",",
+            header=",".join(columns),
+            comments="",
+            fmt="%.8g",
+        )
+    return path

@@ -1,0 +1,158 @@
+"""Reading finished experiment sweeps: closed-loop cells and offline-validation curves.
+
+A closed-loop job is a ``recipes/train_bc.py`` run directory with ``evaluation/summary.json``;
+an offline-validation job is one with ``ensemble_curves.csv`` (``ensemble_seeds > 1``).
+The controller, sensor set and dataset of a job come from its saved Hydra config.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from pilerl.evaluation.metrics import wilson_interval
+
+SUMMER, WINTER = "summer", "winter"
+
+
+@dataclass(frozen=True)
+class JobSetup:
+    """What a job trained: controller, sensor set (``conf/sensors`` name), dataset, seed."""
+
+    path: Path
+    controller: str
+    sensors: str
+    dataset: str
+    seed: int
+    config: dict
+
+
+@dataclass(frozen=True)
+class Cell:
+    """Closed-loop successes of one (controller, sensors, dataset, test), seeds pooled."""
+
+    successes: int
+    episodes: int
+    seeds: int
+
+    @property
+    def rate(self) -> float:
+        return self.successes / self.episodes
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        return wilson_interval(self.successes, self.episodes)
+
+
+def dataset_name(train_data: str) -> str:
+    """``d_i`` / ``d_ii`` from a dataset path such as ``data/datasets/d_ii_summer``."""
+    name = Path(train_data).name
+    for known in ("d_ii", "d_i"):  # d_ii first: d_i is its prefix
+        if name == known or name.startswith(known + "_"):
+            return known
+    return name
+
+
+def job_directories(sweep_dir: str | Path) -> list[Path]:
+    """Every Hydra job directory under ``sweep_dir`` (those with ``.hydra/config.yaml``)."""
+    sweep_dir = Path(sweep_dir)
+    if not sweep_dir.is_dir():
+        raise FileNotFoundError(f"{sweep_dir}: no such sweep directory")
+    return sorted(p.parent.parent for p in sweep_dir.rglob(".hydra/config.yaml"))
+
+
+def job_setup(job_dir: Path) -> JobSetup:
+    hydra_dir = job_dir / ".hydra"
+    try:
+        config = yaml.safe_load((hydra_dir / "config.yaml").read_text())
+        choices = yaml.safe_load((hydra_dir / "hydra.yaml").read_text())["hydra"]["runtime"][
+            "choices"
+        ]
+        return JobSetup(
+            path=job_dir,
+            controller=config["policy"]["name"],
+            sensors=choices["sensors"],
+            dataset=dataset_name(config["train_data"]),
+            seed=int(config["seed"]),
+            config=config,
+        )
+    except (OSError, KeyError, TypeError, yaml.YAMLError) as error:
+        raise ValueError(f"{hydra_dir}: not a train_bc job's saved config ({error!r})") from None
+
+
+def closed_loop_cells(sweep_dir: str | Path) -> tuple[dict[tuple, Cell], list[JobSetup], list]:
+    """Cells keyed ``(controller, sensors, dataset, test)`` with test ``summer`` / ``winter``.
+
+    ``winter`` is the pooled winter entry when several winter conditions were tested, else
+    the one winter condition. Returns the cells, the finished jobs and the unfinished ones.
+    """
+    counts: dict[tuple, list[int]] = defaultdict(lambda: [0, 0, 0])
+    finished, unfinished = [], []
+    for job_dir in job_directories(sweep_dir):
+        setup = job_setup(job_dir)
+        summary_file = job_dir / "evaluation" / "summary.json"
+        if not summary_file.exists():
+            unfinished.append(setup)
+            continue
+        try:
+            summary = json.loads(summary_file.read_text())
+        except json.JSONDecodeError as error:
+            raise ValueError(f"{summary_file}: corrupt ({error})") from None
+        finished.append(setup)
+        winters = [name for name in summary if name.startswith("winter_")]
+        tests = {SUMMER: summary.get(SUMMER)}
+        tests[WINTER] = summary.get(WINTER) or (summary[winters[0]] if winters else None)
+        for test, row in tests.items():
+            if row is None:
+                continue
+            cell = counts[(setup.controller, setup.sensors, setup.dataset, test)]
+            cell[0] += int(row["successes"])
+            cell[1] += int(row["episodes"])
+            cell[2] += 1
+    cells = {key: Cell(s, n, seeds) for key, (s, n, seeds) in counts.items()}
+    return cells, finished, unfinished
+
+
+@dataclass(frozen=True)
+class LossCurves:
+    """Offline validation loss over epochs across seeds (the paper's Fig. 4)."""
+
+    controller: str
+    sensors: str
+    dataset: str
+    seeds: int
+    epoch: np.ndarray
+    validation_mean: np.ndarray
+    validation_std: np.ndarray
+
+
+def offline_validation_curves(sweep_dir: str | Path) -> list[LossCurves]:
+    """One ``LossCurves`` per finished ensemble job under ``sweep_dir``."""
+    curves = []
+    for job_dir in job_directories(sweep_dir):
+        path = job_dir / "ensemble_curves.csv"
+        if not path.exists():
+            continue
+        setup = job_setup(job_dir)
+        with path.open() as file:
+            rows = list(csv.DictReader(file))
+        if not rows or "validation_mean" not in rows[0]:
+            raise ValueError(f"{path}: no validation_mean column (trained without validation?)")
+        curves.append(
+            LossCurves(
+                controller=setup.controller,
+                sensors=setup.sensors,
+                dataset=setup.dataset,
+                seeds=int(json.loads((job_dir / "metrics.json").read_text())["seeds"]),
+                epoch=np.array([float(r["epoch"]) for r in rows]),
+                validation_mean=np.array([float(r["validation_mean"]) for r in rows]),
+                validation_std=np.array([float(r["validation_std"]) for r in rows]),
+            )
+        )
+    return curves
