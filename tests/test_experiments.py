@@ -14,7 +14,8 @@ from test_training import train_bc_recipe
 from pilerl.evaluation.closed_loop import chosen_rollouts, run_closed_loop
 from pilerl.evaluation.evaluator import EvaluationPlan, ScriptedController, summarize
 from pilerl.policies import controller_inputs
-from pilerl.reports import build_report, closed_loop_cells
+from pilerl.reports import closed_loop_cells
+from pilerl.reports.paper import build_report
 from pilerl.reports.results import dataset_name
 from pilerl.training import epochs_for_steps
 
@@ -210,3 +211,23 @@ def test_closed_loop_run_is_deterministic_for_a_seed(tmp_path):
     assert (tmp_path / "a" / "episodes.csv").read_text() == (
         tmp_path / "b" / "episodes.csv"
     ).read_text()
+
+
+def test_report_shows_controls_against_a_demonstration_and_attention_per_phase(datasets, tmp_path):
+    from pilerl.policies import make_actor, save_actor
+
+    root, train, _ = datasets
+    sensors = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
+    actors = {}
+    for name in ("nnetv2", "dannet"):
+        actor = make_actor(name, sensors=sensors, stats=train.stats)
+        actors[name] = save_actor(tmp_path / f"{name}.pt", actor)
+    markdown, _ = build_report(
+        out_dir=tmp_path / "report", figure_actors=actors, figure_demos=root / "winter"
+    )
+    text = markdown.read_text()
+    assert "(Fig. 3)" in text and "| nnetv2 |" in text and "| dannet |" in text
+    assert "Attention of dannet" in text and "Attention of nnetv2" not in text
+    assert "| approach |" in text and "| filling |" in text
+    for figure in ("fig3_control_signals.png", "fig5_attention_dannet.png"):
+        assert (tmp_path / "report" / figure).stat().st_size > 10_000

@@ -1,7 +1,60 @@
-"""Running controllers in a simulator and showing what happened (plots, videos)."""
+"""Running controllers in a simulator and showing what happened.
 
+| module | what |
+|---|---|
+| ``episode`` | ``run_episode``: one episode of any controller, traces and frames |
+| ``evaluator`` | ``evaluate``: N seeded episodes per condition in worker processes, ``summarize`` |
+| ``closed_loop`` | ``run_closed_loop``: evaluate + results, plots and chosen videos in a directory |
+| ``metrics`` | ``wilson_interval`` |
+| ``control_signals`` | the paper's Fig. 3: controllers' controls vs a demonstration |
+| ``attention_masks`` | the paper's Fig. 5: attention masks per scoop phase |
+| ``plots``, ``video``, ``scoop_report`` | signal plots, mp4, the scoop recipe's report |
+"""
+
+from .attention_masks import MaskTrace, PhaseMasks, phase_masks, plot_attention_masks
+from .closed_loop import run_closed_loop
+from .control_signals import (
+    SCOOP_PHASES,
+    ControlComparison,
+    compare_controls,
+    plot_control_signals,
+    run_open_loop,
+    scoop_phases,
+)
 from .episode import Episode, run_episode
+from .evaluator import (
+    ActorController,
+    EvaluationPlan,
+    ScriptedController,
+    evaluate,
+    summarize,
+    write_results,
+)
+from .metrics import wilson_interval
 from .plots import plot_scoop
 from .video import write_mp4
 
-__all__ = ["Episode", "plot_scoop", "run_episode", "write_mp4"]
+__all__ = [
+    "SCOOP_PHASES",
+    "ActorController",
+    "ControlComparison",
+    "Episode",
+    "EvaluationPlan",
+    "MaskTrace",
+    "PhaseMasks",
+    "ScriptedController",
+    "compare_controls",
+    "evaluate",
+    "phase_masks",
+    "plot_attention_masks",
+    "plot_control_signals",
+    "plot_scoop",
+    "run_closed_loop",
+    "run_episode",
+    "run_open_loop",
+    "scoop_phases",
+    "summarize",
+    "wilson_interval",
+    "write_mp4",
+    "write_results",
+]

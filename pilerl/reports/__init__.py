@@ -1,8 +1,8 @@
-"""Reports a person reads: the paper's experiments in simulation (``paper``), built from
-finished sweeps (``results``) as Markdown and HTML (``document``)."""
+"""Reports a person reads. ``paper``: the paper's experiments in simulation (also the CLI
+``python -m pilerl.reports.paper``), built from finished sweeps (``results``) as Markdown
+and HTML (``document``)."""
 
 from .document import Report
-from .paper import build_report
 from .results import Cell, closed_loop_cells, offline_validation_curves
 
-__all__ = ["Cell", "Report", "build_report", "closed_loop_cells", "offline_validation_curves"]
+__all__ = ["Cell", "Report", "closed_loop_cells", "offline_validation_curves"]

@@ -367,6 +367,82 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
         report.table(["claim", "in simulation", "evidence"], claims)
 
 
+def add_controller_figures(
+    report: Report,
+    out_dir: Path,
+    *,
+    actors: dict[str, Path],
+    demos: Path,
+    episodes: int = 10,
+    control_hz: float = 20.0,
+) -> None:
+    """Fig. 3 (controls vs a demonstration) and Fig. 5 (attention per scoop phase).
+
+    The demonstrations are down-sampled to the controllers' rate ``control_hz``; the
+    controllers read the demonstrations' own readings (open loop, as the validation loss).
+    """
+    from pilerl.data import EpisodeStore, downsample_episode
+    from pilerl.evaluation.attention_masks import phase_masks, plot_attention_masks
+    from pilerl.evaluation.control_signals import compare_controls, plot_control_signals
+    from pilerl.policies import load_actor
+    from pilerl.policies.registry import get_spec
+
+    store = EpisodeStore.open(demos)
+    metas = store.episodes[:episodes]
+    demonstrations = [
+        downsample_episode(store.load(m.id), max(1, round(m.rate_hz / control_hz))) for m in metas
+    ]
+    loaded = {name: load_actor(path) for name, path in actors.items()}
+    report.heading("Controllers against a demonstration (Fig. 3)")
+    comparison = compare_controls(demonstrations[0], loaded, controls=store.controls)
+    plot_control_signals(comparison, out_dir / "fig3_control_signals.png", title=str(demos))
+    report.paragraph(
+        f"Demonstration 0 of `{demos}` ({store.description}), down-sampled to "
+        f"{control_hz:g} Hz; each controller reads the demonstration's own readings. "
+        "Checkpoints: " + ", ".join(f"{n} = `{p}`" for n, p in actors.items()) + "."
+    )
+    report.table(
+        ["controller", *comparison.controls, "all"],
+        [
+            [name, *(f"{mse[c]:.4f}" for c in comparison.controls), f"{mse['all']:.4f}"]
+            for name, mse in comparison.mse.items()
+        ],
+    )
+    report.image("fig3_control_signals.png", "Controls over time: demonstration vs controllers")
+    for name, actor in loaded.items():
+        controller = actors[name]
+        if not get_spec(_controller_name(actor)).uses_attention:
+            continue
+        masks = phase_masks(actor, demonstrations, controls=store.controls)
+        figure = f"fig5_attention_{name}.png"
+        plot_attention_masks(masks, out_dir / figure, title=f"{name}: {controller}")
+        report.heading(f"Attention of {name} over the phases of a scoop (Fig. 5)")
+        report.paragraph(
+            f"Mean masks per phase over {len(demonstrations)} demonstrations of `{demos}`. "
+            "Phases from the scripted operator: approach; impact = the first 0.5 s after "
+            "its impact cue; filling = the rest of its fill; finished = its finish."
+        )
+        for title, table in (
+            ("input mask", masks.input_table()),
+            ("output mask", masks.output_table()),
+        ):
+            if table is None:
+                continue
+            columns = list(next(iter(table.values())))
+            report.paragraph(f"{name} {title} (mean weight per phase):")
+            report.table(
+                ["phase", *columns],
+                [[phase, *(f"{row[c]:.2f}" for c in columns)] for phase, row in table.items()],
+            )
+        report.image(figure, f"{name}: attention masks per phase and over one demonstration")
+
+
+def _controller_name(actor) -> str:
+    from pilerl.policies import actor_policy
+
+    return actor_policy(actor).config.controller
+
+
 def build_report(
     *,
     out_dir: str | Path,
@@ -374,6 +450,8 @@ def build_report(
     exp2: Path | None = None,
     exp3: Path | None = None,
     exp4: Path | None = None,
+    figure_actors: dict[str, Path] | None = None,
+    figure_demos: Path | None = None,
     notes: list[str] | None = None,
 ) -> tuple[Path, Path]:
     """Write ``report.md``, ``report.html`` and the figures to ``out_dir``."""
@@ -419,6 +497,8 @@ def build_report(
             )
     if exp4 is not None:
         add_offline_validation(report, Path(exp4), out_dir)
+    if figure_actors and figure_demos is not None:
+        add_controller_figures(report, out_dir, actors=figure_actors, demos=Path(figure_demos))
     return report.write(out_dir)
 
 
@@ -428,7 +508,21 @@ def main(argv: list[str] | None = None) -> int:
         parser.add_argument(f"--exp{n}", type=Path, help=f"multirun directory of Exp. {n}")
     parser.add_argument("--out", type=Path, required=True, help="report directory")
     parser.add_argument("--note", action="append", default=[], help="a line for the notes")
+    parser.add_argument(
+        "--figure-actor",
+        action="append",
+        default=[],
+        metavar="NAME=CHECKPOINT",
+        help="a controller for Fig. 3 (and Fig. 5 if it has attention); repeatable",
+    )
+    parser.add_argument("--figure-demos", type=Path, help="demonstrations for Fig. 3 and 5")
     args = parser.parse_args(argv)
+    figure_actors = {}
+    for item in args.figure_actor:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            parser.error(f"--figure-actor {item!r}: expected NAME=CHECKPOINT")
+        figure_actors[name] = Path(path)
     try:
         markdown, page = build_report(
             out_dir=args.out,
@@ -436,6 +530,8 @@ def main(argv: list[str] | None = None) -> int:
             exp2=args.exp2,
             exp3=args.exp3,
             exp4=args.exp4,
+            figure_actors=figure_actors,
+            figure_demos=args.figure_demos,
             notes=args.note,
         )
     except (FileNotFoundError, ValueError) as error:
