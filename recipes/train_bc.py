@@ -20,12 +20,12 @@ from pathlib import Path
 import hydra
 import torch
 from omegaconf import DictConfig, OmegaConf
-from torchrl.record.loggers import get_logger
 
 from pilerl.config import TrainBCConfig, register_configs
 from pilerl.data import EpisodeStore
 from pilerl.evaluation.closed_loop import run_closed_loop
 from pilerl.evaluation.evaluator import ActorController
+from pilerl.loggers import make_logger
 from pilerl.policies import controller_inputs, get_spec, make_actor
 from pilerl.runtime import limit_threads
 from pilerl.sweeps import METRICS_FILE, is_done, mark_done
@@ -40,7 +40,6 @@ from pilerl.training.plots import plot_ensemble, plot_losses
 
 log = logging.getLogger(__name__)
 register_configs()
-LOGGERS = ("csv", "tensorboard", "none")
 
 
 @hydra.main(config_path="../conf", config_name="train_bc", version_base="1.3")
@@ -58,8 +57,6 @@ def main(cfg: DictConfig) -> float:
             "evaluation.episodes: an ensemble (ensemble_seeds > 1) has no one "
             "controller to test in closed loop; set evaluation.episodes=0"
         )
-    if config.logger not in LOGGERS:
-        raise ValueError(f"logger: unknown {config.logger!r}; known: {list(LOGGERS)}")
 
     # --- data: the training set carries the normalisation statistics
     train_store = EpisodeStore.open(config.train_data)
@@ -116,11 +113,7 @@ def main(cfg: DictConfig) -> float:
         return float(final[:, -1].mean())
 
     # --- one model: logger, training
-    logger = (
-        None
-        if config.logger == "none"
-        else get_logger(config.logger, logger_name=str(run_dir), experiment_name="bc")
-    )
+    logger = make_logger(config.logger.backend, run_dir, experiment_name="bc")
     actor, history = train_bc(actor, train, validation, settings, run_dir=run_dir, logger=logger)
 
     # --- what a person looks at

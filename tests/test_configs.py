@@ -23,6 +23,16 @@ def compose_config(name: str, overrides: list[str] | None = None):
         return compose(config_name=name, overrides=overrides or [], return_hydra_config=True)
 
 
+def typed_config(name: str, overrides: list[str]):
+    """The recipe's typed config (without Hydra's node, whose keys are set at launch)."""
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        directory = (
+            "out_dir=/x" if name in ("record", "build_dataset", "teleop") else "output_dir=/x"
+        )
+        cfg = compose(config_name=name, overrides=[directory, *overrides])
+    return OmegaConf.to_object(cfg)
+
+
 def _leaves(node, prefix=""):
     if isinstance(node, dict):
         for key, value in node.items():
@@ -107,3 +117,34 @@ def test_every_experiment_overlay_composes_with_its_sweep(experiment):
     assert "policy" in cfg.hydra.sweeper.params
     if not experiment.startswith("exp4"):  # the closed-loop experiments test in winter
         assert cfg.evaluation.episodes > 0 and "winter_c" in cfg.evaluation.conditions
+
+
+@pytest.mark.parametrize("group", ["condition", "soil", "logger"])
+def test_every_condition_soil_and_logger_choice_composes(group):
+    for choice in sorted(p.stem for p in (CONF / group).glob("*.yaml")):
+        primary = "train_bc" if group == "logger" else "record"
+        config = typed_config(primary, [f"{group}={choice}"])
+        if group == "condition":
+            assert config.env.condition == choice
+        elif group == "soil":
+            assert config.env.soil == choice.split("_")[0]
+        else:
+            assert config.logger.backend == choice
+
+
+def test_condition_overrides_reach_the_simulator_and_bad_ones_fail():
+    from pilerl.sim import make_gym_env
+
+    config = typed_config(
+        "record", ["condition=winter_c", "+env.condition_overrides.ground.tyre_friction=0.05"]
+    )
+    env = make_gym_env("pile_loader", **config.env.make_kwargs()).unwrapped
+    assert env.condition.name == "winter_c" and env.condition.ground.tyre_friction == 0.05
+    config = typed_config("record", ["+env.condition_overrides.ground.tyre_friction=-1"])
+    with pytest.raises(ValueError, match="tyre_friction"):
+        make_gym_env("pile_loader", **config.env.make_kwargs())
+
+
+def test_an_unknown_logger_fails_when_the_config_is_built():
+    with pytest.raises(ValueError, match="logger.backend"):
+        typed_config("train_bc", ["logger.backend=wandb"])

@@ -25,6 +25,8 @@ class EnvConfig:
         condition: condition preset (``summer``, ``winter_a`` .. ``winter_d``).
         soil: soil model (``heightfield`` or ``particles``).
         soil_options: keyword options of the soil model (e.g. ``{max_particles: 350}``).
+        condition_overrides: changes to the condition's physical values, by part and field
+            (e.g. ``{ground: {tyre_friction: 0.08}}``); checked by the simulator.
         control_hz: control rate [Hz].
         physics_hz: physics rate [Hz] (>= 500).
         sensor_noise: multiplier of the sensors' default noise (0 = noiseless).
@@ -36,6 +38,7 @@ class EnvConfig:
     condition: str = "summer"
     soil: str = "heightfield"
     soil_options: dict[str, Any] = field(default_factory=dict)
+    condition_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
     control_hz: float = 20.0
     physics_hz: float = 500.0
     sensor_noise: float = 1.0
@@ -45,6 +48,8 @@ class EnvConfig:
     def make_kwargs(self, **overrides) -> dict:
         """Keyword arguments for ``pilerl.sim.make_gym_env`` (simulator name excluded)."""
         kwargs = {k: v for k, v in asdict(self).items() if k != "simulator"}
+        if not kwargs["condition_overrides"]:  # simulators without conditions need not know it
+            del kwargs["condition_overrides"]
         kwargs["start_distance_range_m"] = tuple(kwargs["start_distance_range_m"])
         kwargs["approach_angle_range_deg"] = tuple(kwargs["approach_angle_range_deg"])
         kwargs.update(overrides)
@@ -137,6 +142,27 @@ class TeleopConfig:
     out_dir: str = MISSING
 
 
+LOGGER_BACKENDS = ("csv", "tensorboard", "none")
+
+
+@dataclass
+class LoggerConfig:
+    """A TorchRL metric logger (the ``logger`` config group).
+
+    Attributes:
+        backend: ``csv`` (default; files under the run directory), ``tensorboard`` (needs the
+            ``tensorboard`` package) or ``none``.
+    """
+
+    backend: str = "csv"
+
+    def __post_init__(self) -> None:
+        if self.backend not in LOGGER_BACKENDS:
+            raise ValueError(
+                f"logger.backend: unknown {self.backend!r}; known: {list(LOGGER_BACKENDS)}"
+            )
+
+
 @dataclass
 class PolicyConfig:
     """A controller (the ``policy`` config group): registry name and its options."""
@@ -221,7 +247,7 @@ class TrainBCConfig:
             get the same training budget (D_I has 27x the rows of D_II). Levenberg-Marquardt
             rounds and the forest's fit do not depend on the dataset size; they keep
             ``epochs``.
-        logger: ``csv``, ``tensorboard`` or ``none`` (TorchRL loggers).
+        logger: the TorchRL metric logger (``logger`` group: csv, tensorboard, none).
         trainer: ``gradient``, ``levenberg_marquardt`` or ``fit``; ``None`` = the
             controller's default (NNet: Levenberg-Marquardt).
         ensemble_seeds: > 1 trains that many seeds at once (``torch.func``) and plots
@@ -239,7 +265,7 @@ class TrainBCConfig:
     batch_size: int = 512
     learning_rate: float = 1e-3
     seed: int = 0
-    logger: str = "csv"
+    logger: LoggerConfig = field(default_factory=LoggerConfig)
     trainer: str | None = None
     ensemble_seeds: int = 1
     env: EnvConfig = field(default_factory=EnvConfig)
@@ -260,3 +286,4 @@ def register_configs() -> None:
     store.store(group="sensors", name="sensors_schema", node=SensorsConfig)
     store.store(group="env", name="env_schema", node=EnvConfig)
     store.store(group="dataset", name="dataset_schema", node=DatasetConfig)
+    store.store(group="logger", name="logger_schema", node=LoggerConfig)
