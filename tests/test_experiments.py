@@ -12,7 +12,13 @@ from test_recipes import run_recipe
 from test_training import train_bc_recipe
 
 from pilerl.evaluation.closed_loop import chosen_rollouts, run_closed_loop
-from pilerl.evaluation.evaluator import EvaluationPlan, ScriptedController, summarize
+from pilerl.evaluation.evaluator import (
+    EvaluationPlan,
+    ScriptedController,
+    evaluate,
+    failure_mode,
+    summarize,
+)
 from pilerl.policies import controller_inputs
 from pilerl.reports import closed_loop_cells
 from pilerl.reports.paper import build_report
@@ -47,6 +53,38 @@ def test_winter_conditions_are_also_pooled():
     assert summary["winter"]["successes"] == 1 and summary["winter"]["episodes"] == 4
     assert summary["winter"]["fill_mean"] == pytest.approx(0.325)
     assert "winter" not in summarize(records[:3])  # one winter condition: nothing to pool
+
+
+@pytest.mark.parametrize(
+    ("success", "tipped", "lift_s", "penetration_s", "mode"),
+    [
+        (True, False, 5.0, 4.0, "success"),
+        (False, True, 5.0, 4.0, "tipped"),
+        (False, False, math.nan, 4.0, "no_boom_rise"),
+        (False, False, 2.0, 4.0, "early_boom_rise"),
+        (False, False, 2.0, math.nan, "early_boom_rise"),
+        (False, False, 5.0, 4.0, "underfilled"),
+    ],
+)
+def test_failure_modes_in_the_papers_words(success, tipped, lift_s, penetration_s, mode):
+    assert (
+        failure_mode(
+            success=success, tipped=tipped, first_lift_s=lift_s, penetration_s=penetration_s
+        )
+        == mode
+    )
+
+
+def test_a_scripted_early_lift_is_recorded_as_an_early_boom_rise():
+    from pilerl.operators import OperatorStyle
+
+    plan = EvaluationPlan("pile_loader", {}, ("summer",), episodes=1, seed=0)
+    early = ScriptedController(OperatorStyle(early_boom_rise_s=0.5), name="early")
+    (row,) = evaluate(early, plan, workers=1, progress=False)
+    assert row["failure_mode"] == "early_boom_rise" and row["first_lift_s"] < 2.0
+    (row,) = evaluate(ScriptedController(), plan, workers=1, progress=False)
+    assert row["failure_mode"] == "success" and row["penetration_s"] < row["first_lift_s"]
+    assert summarize([row])["summer"]["failure_modes"]["early_boom_rise"] == 0
 
 
 def test_chosen_rollouts_are_the_median_fill_and_the_first_failure():
@@ -93,7 +131,10 @@ def fake_job(root: Path, n: int, policy: str, sensors: str, data: str, summary: 
     hydra = {"hydra": {"runtime": {"choices": {"sensors": sensors, "policy": policy}}}}
     (job / ".hydra" / "config.yaml").write_text(yaml.safe_dump(config))
     (job / ".hydra" / "hydra.yaml").write_text(yaml.safe_dump(hydra))
-    rows = {c: {"successes": s, "episodes": e} for c, (s, e) in summary.items()}
+    rows = {
+        c: {"successes": s, "episodes": e, "failure_modes": {"early_boom_rise": e - s}}
+        for c, (s, e) in summary.items()
+    }
     (job / "evaluation" / "summary.json").write_text(json.dumps(rows))
 
 
@@ -121,6 +162,7 @@ def test_report_puts_the_paper_beside_known_simulated_numbers(tmp_path):
     markdown, page = build_report(out_dir=tmp_path / "report", exp1=sweep, notes=["budget X"])
     text = markdown.read_text()
     assert "| RF | θ1, θ2, p_d | D_II | winter | 40% | 50% | 4/8 |" in text
+    assert "| agrees | early lift 4 |" in text
     assert (
         "| NNetV2 | θ1, θ2, p_d | D_II | winter | 0% | 100% | 16/16 | 81%–100% | sim higher |"
         in text

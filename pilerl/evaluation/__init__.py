@@ -4,7 +4,7 @@
 |---|---|
 | ``episode`` | ``run_episode``: one episode of any controller, traces and frames |
 | ``evaluator`` | ``evaluate``: N seeded episodes per condition in worker processes, ``summarize`` |
-| ``closed_loop`` | ``run_closed_loop``: evaluate + results, plots and chosen videos in a directory |
+| ``closed_loop`` | ``run_closed_loop``: evaluate, then results, plots and chosen videos |
 | ``metrics`` | ``wilson_interval`` |
 | ``control_signals`` | the paper's Fig. 3: controllers' controls vs a demonstration |
 | ``attention_masks`` | the paper's Fig. 5: attention masks per scoop phase |

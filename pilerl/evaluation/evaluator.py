@@ -125,14 +125,23 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
     operator.reset()
     seed = plan.seed * 100_000 + index
     obs, start = env.reset(seed=seed)
-    total, max_slip, time_to_finish = 0.0, 0.0, math.nan
+    boom = _control_index(env, "boom")
+    total, max_slip, time_to_finish, max_depth = 0.0, 0.0, math.nan, 0.0
+    first_lift_s, penetration_s = math.nan, math.nan
     while True:
-        obs, reward, terminated, truncated, info = env.step(operator.act(obs))
+        action = operator.act(obs)
+        obs, reward, terminated, truncated, info = env.step(action)
         total += float(reward)
         max_slip = max(max_slip, float(info.get("wheel_slip_m_s", 0.0)))
+        max_depth = max(max_depth, float(info.get("cutting_depth_m", 0.0)))
+        now = float(info["elapsed_s"])
+        if boom is not None and math.isnan(first_lift_s) and action[boom] > LIFT_COMMAND:
+            first_lift_s = now
+        if math.isnan(penetration_s) and max_depth >= PENETRATION_M:
+            penetration_s = now
         if terminated or truncated:
             if info.get("scoop_finished"):
-                time_to_finish = float(info["elapsed_s"])
+                time_to_finish = now
             break
     return {
         "controller": controller.name,
@@ -149,7 +158,43 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
         "max_wheel_slip_m_s": max_slip,
         "spilled_kg": float(info.get("spilled_kg", 0.0)),
         "return": total,
+        "max_cutting_depth_m": max_depth,
+        "first_lift_s": first_lift_s,
+        "penetration_s": penetration_s,
+        "failure_mode": failure_mode(
+            success=bool(info["success"]),
+            tipped=bool(info.get("tipped", False)),
+            first_lift_s=first_lift_s,
+            penetration_s=penetration_s,
+        ),
     }
+
+
+# What went wrong in a failed scoop, in the paper's words ("the main failure cases were
+# early boom rising and no boom rising at all"), decided from what was measured.
+LIFT_COMMAND = 0.3  # boom control above this is a lift
+PENETRATION_M = 0.10  # cutting-edge depth in the pile that counts as having dug in [m]
+FAILURE_MODES = ("early_boom_rise", "no_boom_rise", "tipped", "underfilled")
+
+
+def failure_mode(*, success: bool, tipped: bool, first_lift_s: float, penetration_s: float) -> str:
+    """``success``, or why not: ``tipped``; ``no_boom_rise`` (the boom was never lifted);
+    ``early_boom_rise`` (lifted before the edge was ``PENETRATION_M`` deep in the pile);
+    ``underfilled`` (dug in and lifted, but less than half full)."""
+    if success:
+        return "success"
+    if tipped:
+        return "tipped"
+    if math.isnan(first_lift_s):
+        return "no_boom_rise"
+    if math.isnan(penetration_s) or first_lift_s < penetration_s:
+        return "early_boom_rise"
+    return "underfilled"
+
+
+def _control_index(env, name: str) -> int | None:
+    names = list(getattr(env.unwrapped, "control_names", ()))
+    return names.index(name) if name in names else None
 
 
 def evaluate(
@@ -212,6 +257,9 @@ def _summarize_rows(rows: Sequence[dict], confidence: float) -> dict:
         "time_to_fill_s_mean": statistics.fmean(finish) if finish else math.nan,
         "max_wheel_slip_m_s_mean": statistics.fmean(r["max_wheel_slip_m_s"] for r in rows),
         "spilled_kg_mean": statistics.fmean(r["spilled_kg"] for r in rows),
+        "failure_modes": {
+            mode: sum(r.get("failure_mode") == mode for r in rows) for mode in FAILURE_MODES
+        },
     }
 
 
@@ -232,12 +280,14 @@ def write_results(records: Sequence[dict], summary: dict, out_dir: str | Path) -
 
 
 __all__ = [
+    "FAILURE_MODES",
     "WINTER_POOL",
     "ActorController",
     "EvaluationPlan",
     "ScriptedController",
     "clear_caches",
     "evaluate",
+    "failure_mode",
     "summarize",
     "write_results",
 ]

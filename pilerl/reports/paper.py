@@ -67,7 +67,7 @@ def comparison_rows(paper: dict[Key, int], cells: dict[Key, Cell]) -> list[list[
         ]
         cell = cells.get(key)
         if cell is None:
-            rows.append(row + ["not run", "", "", ""])
+            rows.append(row + ["not run", "", "", "", ""])
             continue
         low, high = cell.interval
         inside = low <= paper_percent / 100 <= high
@@ -83,9 +83,24 @@ def comparison_rows(paper: dict[Key, int], cells: dict[Key, Cell]) -> list[list[
                 f"{cell.successes}/{cell.episodes}",
                 f"{_percent(low)}–{_percent(high)}",
                 verdict,
+                _failures(cell),
             ]
         )
     return rows
+
+
+FAILURE_LABELS = {
+    "early_boom_rise": "early lift",
+    "no_boom_rise": "no lift",
+    "underfilled": "underfilled",
+    "tipped": "tipped",
+}
+
+
+def _failures(cell: Cell) -> str:
+    """The failed episodes by failure mode (``pilerl.evaluation.evaluator.failure_mode``)."""
+    parts = [f"{FAILURE_LABELS.get(m, m)} {n}" for m, n in cell.failure_modes.items() if n]
+    return ", ".join(parts) if parts else ("–" if cell.failure_modes else "not recorded")
 
 
 COMPARISON_HEADER = [
@@ -98,6 +113,7 @@ COMPARISON_HEADER = [
     "successes",
     "95% CI",
     "paper in CI?",
+    "failures",
 ]
 
 

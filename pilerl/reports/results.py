@@ -10,7 +10,7 @@ from __future__ import annotations
 import csv
 import json
 from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +40,7 @@ class Cell:
     successes: int
     episodes: int
     seeds: int
+    failure_modes: dict[str, int] = field(default_factory=dict)  # empty: not recorded
 
     @property
     def rate(self) -> float:
@@ -93,6 +94,7 @@ def closed_loop_cells(sweep_dir: str | Path) -> tuple[dict[tuple, Cell], list[Jo
     the one winter condition. Returns the cells, the finished jobs and the unfinished ones.
     """
     counts: dict[tuple, list[int]] = defaultdict(lambda: [0, 0, 0])
+    modes: dict[tuple, dict[str, int]] = defaultdict(dict)
     finished, unfinished = [], []
     for job_dir in job_directories(sweep_dir):
         setup = job_setup(job_dir)
@@ -111,11 +113,13 @@ def closed_loop_cells(sweep_dir: str | Path) -> tuple[dict[tuple, Cell], list[Jo
         for test, row in tests.items():
             if row is None:
                 continue
-            cell = counts[(setup.controller, setup.sensors, setup.dataset, test)]
-            cell[0] += int(row["successes"])
-            cell[1] += int(row["episodes"])
-            cell[2] += 1
-    cells = {key: Cell(s, n, seeds) for key, (s, n, seeds) in counts.items()}
+            key = (setup.controller, setup.sensors, setup.dataset, test)
+            counts[key][0] += int(row["successes"])
+            counts[key][1] += int(row["episodes"])
+            counts[key][2] += 1
+            for mode, n in row.get("failure_modes", {}).items():
+                modes[key][mode] = modes[key].get(mode, 0) + int(n)
+    cells = {key: Cell(s, n, seeds, modes[key]) for key, (s, n, seeds) in counts.items()}
     return cells, finished, unfinished
 
 
