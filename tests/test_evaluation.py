@@ -64,3 +64,25 @@ def test_a_sensible_operator_scores_high_in_summer_and_results_are_written(tmp_p
     write_results(records, summarize(records), tmp_path)
     assert len((tmp_path / "episodes.csv").read_text().splitlines()) == 5
     assert json.loads((tmp_path / "summary.json").read_text())["summer"]["episodes"] == 4
+
+
+def test_a_checkpoint_rewritten_in_place_is_evaluated_with_its_new_weights(datasets, tmp_path):
+    import torch
+
+    from pilerl.evaluation.evaluator import ActorController
+    from pilerl.policies import make_actor, save_actor
+
+    _, train, _ = datasets
+    sensors = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
+    torch.manual_seed(0)
+    actor = make_actor("nnetv2", sensors=sensors, stats=train.stats)
+    path = save_actor(tmp_path / "actor.pt", actor)
+    plan = EvaluationPlan("pile_loader", {}, ("summer",), episodes=1, seed=0)
+    first = evaluate(ActorController(str(path)), plan, workers=1, progress=False)
+    with torch.no_grad():
+        for parameter in actor.parameters():
+            parameter.zero_()  # now every control is tanh(0) = 0: the machine stands still
+    save_actor(path, actor)
+    second = evaluate(ActorController(str(path)), plan, workers=1, progress=False)
+    assert second[0]["first_lift_s"] != second[0]["first_lift_s"]  # NaN: never lifted
+    assert not same_records(first, second)

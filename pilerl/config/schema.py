@@ -189,6 +189,8 @@ class ClosedLoopConfig:
         seed: base seed; episode i starts from the same pose in every condition.
         workers: episode processes (``None`` = one per core).
         videos: render the median-fill episode and the first failure of each condition.
+        video_conditions: only these conditions' (``None``: every condition's); offscreen
+            rendering runs in software here (~0.05-0.2 s a frame).
         render_width, render_height: video frame size [px].
     """
 
@@ -199,6 +201,7 @@ class ClosedLoopConfig:
     seed: int = 1
     workers: int | None = None
     videos: bool = False
+    video_conditions: list[str] | None = None
     render_width: int = 640
     render_height: int = 360
 
@@ -287,3 +290,10 @@ def register_configs() -> None:
     store.store(group="env", name="env_schema", node=EnvConfig)
     store.store(group="dataset", name="dataset_schema", node=DatasetConfig)
     store.store(group="logger", name="logger_schema", node=LoggerConfig)
+    # imported here: the RL and pipeline schemas build on this module
+    from pilerl.rl.config import register_rl_configs
+
+    from .pipeline import PipelineConfig
+
+    register_rl_configs()
+    store.store(name="pipeline_schema", node=PipelineConfig)

@@ -104,7 +104,13 @@ def _cached_env(plan: EvaluationPlan, condition: str):
 
 
 def _cached_operator(controller, dt: float):
-    key = (repr(controller), dt)
+    # a checkpoint rewritten in place (a fine-tuning run re-saving its actor) is a new key
+    checkpoint = getattr(controller, "checkpoint", None)
+    stamp = None
+    if checkpoint is not None:
+        stat = os.stat(checkpoint)
+        stamp = (stat.st_mtime_ns, stat.st_size, stat.st_ino)
+    key = (repr(controller), dt, stamp)
     if key not in _OPERATORS:
         _OPERATORS[key] = controller.build(dt)
     return _OPERATORS[key]

@@ -1,0 +1,43 @@
+"""RL fine-tuning of cloned controllers in the simulator (PPO, TD3+BC).
+
+| module | what |
+|---|---|
+| ``config`` | ``FinetuneConfig`` and the algorithm schemas; ``register_rl_configs`` |
+| ``envs`` | ``ConditionMixtureEnv``: conditions drawn per episode, reward from named parts |
+| ``critics`` | value and Q networks over normalised sensors |
+| ``regularizers`` | BC on demo batches, MSE to the frozen cloned actor |
+| ``ppo`` | ``PPOLearner``: ``ClipPPOLoss`` + ``GAE`` |
+| ``td3bc`` | ``TD3BCLearner``: ``TD3BCLoss``, twin Q, demos in replay |
+| ``collection`` | TorchRL collectors: single process, multi-process, Ray |
+| ``evaluation`` | pooled success per condition group, videos, success curve |
+| ``finetuning`` | ``finetune(config, run_dir)``: the loop, checkpoints, resume |
+
+See docs/finetuning.md.
+"""
+
+from .config import (
+    CollectionConfig,
+    CurriculumConfig,
+    CurriculumStage,
+    EvaluationConfig,
+    FinetuneConfig,
+    PPOConfig,
+    TD3BCConfig,
+    register_rl_configs,
+    validate_finetune_config,
+)
+from .finetuning import finetune, load_cloned_actor
+
+__all__ = [
+    "CollectionConfig",
+    "CurriculumConfig",
+    "CurriculumStage",
+    "EvaluationConfig",
+    "FinetuneConfig",
+    "PPOConfig",
+    "TD3BCConfig",
+    "finetune",
+    "load_cloned_actor",
+    "register_rl_configs",
+    "validate_finetune_config",
+]

@@ -1,0 +1,88 @@
+"""TorchRL collectors for fine-tuning: in this process, across processes, or on Ray.
+
+| backend | collector | batch shape |
+|---|---|---|
+| ``single`` | ``Collector``: the env steps in this process | ``[frames_per_batch]`` |
+| ``multiprocess`` | ``MultiSyncCollector``: one env per worker process | ``[workers, T]`` |
+| ``ray`` | ``pilerl.rl.ray_collection.make_ray_collector`` (TorchRL, Ray) | per that module |
+
+Time is the last batch dimension in every case. The policy runs with
+``ExplorationType.RANDOM`` (the learner's exploration). After every update call
+``sync_weights(collector)`` so worker processes act with the new weights.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from tensordict.nn import TensorDictModule
+from torchrl.collectors import Collector, MultiSyncCollector
+from torchrl.envs.utils import ExplorationType
+
+from .config import BACKENDS
+
+
+def make_collector(
+    create_env_fn: Callable,
+    policy: TensorDictModule,
+    *,
+    frames_per_batch: int,
+    total_frames: int,
+    backend: str = "single",
+    workers: int = 1,
+    seed: int = 0,
+    ray_init_kwargs: dict | None = None,
+):
+    """A seeded collector yielding ``frames_per_batch`` transitions per iteration.
+
+    Args:
+        create_env_fn: picklable callable returning a TorchRL env (``TrainingEnvFactory``).
+        policy: the learner's collection policy (weights shared in ``single``, copied to
+            the workers otherwise).
+        total_frames: frames to collect before the iterator ends.
+        backend: ``single``, ``multiprocess`` or ``ray``.
+        workers: processes (``multiprocess``) or remote collectors (``ray``).
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"collection backend: unknown {backend!r}; known: {list(BACKENDS)}")
+    if workers < 1:
+        raise ValueError(f"collection workers: must be >= 1, got {workers}")
+    if backend == "single":
+        collector = Collector(
+            create_env_fn,
+            policy,
+            frames_per_batch=frames_per_batch,
+            total_frames=total_frames,
+            exploration_type=ExplorationType.RANDOM,
+            auto_register_policy_transforms=False,
+        )
+    elif backend == "multiprocess":
+        collector = MultiSyncCollector(
+            [create_env_fn] * workers,
+            policy,
+            frames_per_batch=frames_per_batch,
+            total_frames=total_frames,
+            exploration_type=ExplorationType.RANDOM,
+            cat_results="stack",
+        )
+    else:
+        from .ray_collection import make_ray_collector  # needs ray: imported on demand
+
+        return make_ray_collector(  # sync: on-policy batches, [workers, ..., T]
+            create_env_fn,
+            policy,
+            frames_per_batch=frames_per_batch,
+            total_frames=total_frames,
+            num_collectors=workers,
+            ray_init_kwargs=ray_init_kwargs or None,
+            sync=True,
+            seed=seed,
+        )
+    collector.set_seed(seed)
+    return collector
+
+
+def sync_weights(collector) -> None:
+    """Send the policy's current weights to the collector's workers (no-op in-process)."""
+    if not isinstance(collector, Collector):
+        collector.update_policy_weights_()

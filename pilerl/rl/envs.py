@@ -1,0 +1,185 @@
+"""Training environments: a mixture of conditions, rewarded from named reward parts.
+
+``ConditionMixtureEnv`` is a Gymnasium env that holds one simulator per condition and,
+at every reset, draws the condition of the coming episode from the mixture's weights. Its
+reward is the weighted sum of the named reward parts the simulator reports in ``info``
+(``reward_fill``, ``reward_success``...). ``make_training_env`` wraps it for TorchRL
+(``GymWrapper``) and copies ``success`` and the reward parts from ``info`` into every
+step's tensordict, so a collected batch tells how training episodes went.
+
+The condition is drawn from the env's own generator, seeded at the first reset, so a
+seeded collector replays the same conditions and starts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import gymnasium as gym
+import numpy as np
+import torch
+from torchrl.data import Unbounded
+from torchrl.envs import GymWrapper, default_info_dict_reader
+
+from pilerl.sim import make_gym_env
+from pilerl.sim.torchrl_env import SimulatorBatchEnv
+
+SUCCESS_KEY = "success"
+CONDITION_INDEX_KEY = "condition_index"
+SEED_RANGE = 2**31 - 1
+
+
+class ConditionMixtureEnv(gym.Env):
+    """One simulator per condition; each episode runs in a condition drawn by weight.
+
+    Args:
+        simulator: plugin name.
+        env_kwargs: simulator arguments except ``condition``.
+        conditions: condition name -> relative weight (>= 0, not all zero).
+        reward_weights: reward part name (an ``info`` key) -> multiplier; the reward is
+            ``sum(weight * info[part])``.
+    """
+
+    metadata = {"render_modes": ["rgb_array"]}
+
+    def __init__(
+        self,
+        simulator: str,
+        env_kwargs: Mapping[str, object],
+        conditions: Mapping[str, float],
+        reward_weights: Mapping[str, float],
+    ) -> None:
+        super().__init__()
+        if not conditions:
+            raise ValueError("ConditionMixtureEnv: conditions is empty")
+        weights = np.array([float(w) for w in conditions.values()])
+        if not (np.isfinite(weights).all() and (weights >= 0).all() and weights.sum() > 0):
+            raise ValueError(
+                f"ConditionMixtureEnv: condition weights must be finite, >= 0 and not all 0, "
+                f"got {dict(conditions)}"
+            )
+        if not reward_weights:
+            raise ValueError("ConditionMixtureEnv: reward_weights names no reward part")
+        self.condition_names = list(conditions)
+        self.probabilities = weights / weights.sum()
+        self.reward_weights = {str(k): float(v) for k, v in reward_weights.items()}
+        self._envs = {
+            name: make_gym_env(simulator, **dict(env_kwargs), condition=name)
+            for name, w in conditions.items()
+            if w > 0
+        }
+        first = next(iter(self._envs.values()))
+        self.observation_space = first.observation_space
+        self.action_space = first.action_space
+        self.dt = float(first.unwrapped.dt)
+        self.condition = self.condition_names[int(np.argmax(self.probabilities))]
+        self._checked_parts = False
+
+    @property
+    def active(self) -> gym.Env:
+        """The simulator of the current episode's condition."""
+        return self._envs[self.condition]
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        index = int(self.np_random.choice(len(self.condition_names), p=self.probabilities))
+        self.condition = self.condition_names[index]
+        obs, info = self.active.reset(seed=int(self.np_random.integers(SEED_RANGE)))
+        return obs, self._reported(info)
+
+    def step(self, action):
+        obs, _, terminated, truncated, info = self.active.step(action)
+        reward = self.training_reward(info)
+        return obs, reward, terminated, truncated, self._reported(info)
+
+    def training_reward(self, info: Mapping[str, float]) -> float:
+        """``sum(weight * info[part])`` over the configured reward parts."""
+        if not self._checked_parts:
+            missing = sorted(set(self.reward_weights) - set(info))
+            if missing:
+                reported = sorted(k for k in info if k.startswith("reward_"))
+                raise KeyError(
+                    f"reward_weights: the simulator reports no reward part(s) {missing}; "
+                    f"it reports {reported}"
+                )
+            self._checked_parts = True
+        return float(sum(w * float(info[part]) for part, w in self.reward_weights.items()))
+
+    def render(self):
+        return self.active.render()
+
+    def close(self):
+        for env in self._envs.values():
+            env.close()
+
+    def _reported(self, info: dict) -> dict:
+        """``info`` plus the condition index; the keys TorchRL copies as float32 [1]."""
+        info = {**info, CONDITION_INDEX_KEY: self.condition_names.index(self.condition)}
+        for key in info_keys(self.reward_weights):
+            info[key] = np.array([float(info.get(key, 0.0))], dtype=np.float32)
+        return info
+
+
+def info_keys(reward_weights: Mapping[str, float]) -> list[str]:
+    """``info`` entries copied into every step: success, condition index, reward parts."""
+    return [SUCCESS_KEY, CONDITION_INDEX_KEY, *reward_weights]
+
+
+def make_training_env(
+    simulator: str,
+    env_kwargs: Mapping[str, object],
+    conditions: Mapping[str, float],
+    reward_weights: Mapping[str, float],
+    *,
+    num_envs: int = 1,
+):
+    """A TorchRL env around ``num_envs`` ``ConditionMixtureEnv`` simulators.
+
+    - ``num_envs=1``: ``GymWrapper``, batch size ``[]``. Each step's tensordict carries the
+      sensors by name, ``reward`` (the weighted parts) and, from ``info``, ``success``,
+      ``condition_index`` and every named reward part (float32, shape [1]).
+    - ``num_envs=N``: ``pilerl.sim.torchrl_env.SimulatorBatchEnv``, batch size ``[N]``: N
+      simulators stepped in a loop, TorchRL's per-step cost and the actor's forward pass
+      paid once for all N (much faster on CPU); sensors, reward and end flags only.
+    """
+    if num_envs > 1:
+        return SimulatorBatchEnv(
+            lambda: ConditionMixtureEnv(simulator, env_kwargs, conditions, reward_weights),
+            num_envs,
+        )
+    mixture = ConditionMixtureEnv(simulator, env_kwargs, conditions, reward_weights)
+    env = GymWrapper(mixture)
+    keys = info_keys(reward_weights)
+    reader = default_info_dict_reader(
+        keys, spec={k: Unbounded(shape=(1,), dtype=torch.float32) for k in keys}
+    )
+    env.set_info_dict_reader(reader)
+    return env
+
+
+class TrainingEnvFactory:
+    """A picklable ``create_env_fn`` for collectors (also in worker processes)."""
+
+    def __init__(
+        self,
+        simulator: str,
+        env_kwargs: Mapping[str, object],
+        conditions: Mapping[str, float],
+        reward_weights: Mapping[str, float],
+        *,
+        num_envs: int = 1,
+    ) -> None:
+        self.simulator = simulator
+        self.env_kwargs = dict(env_kwargs)
+        self.conditions = dict(conditions)
+        self.reward_weights = dict(reward_weights)
+        self.num_envs = num_envs
+
+    def __call__(self):
+        return make_training_env(
+            self.simulator,
+            self.env_kwargs,
+            self.conditions,
+            self.reward_weights,
+            num_envs=self.num_envs,
+        )

@@ -1,0 +1,421 @@
+"""Fine-tune a cloned controller by RL in the simulator: the loop and its bookkeeping.
+
+``finetune(config, run_dir)`` reads top to bottom:
+
+1. check the config and the checkpoint (a neural controller) before any work;
+2. build the learner (PPO or TD3+BC) around the cloned actor;
+3. resume from ``run_dir/last.ckpt`` if there is one;
+4. evaluate the cloned actor (before), per condition group, with Wilson intervals;
+5. for each curriculum stage: collect in that stage's condition mixture, update,
+   evaluate every ``evaluation.every_frames`` (keeping the best actor as ``best.pt``),
+   checkpoint every ``checkpoint_every_frames``;
+6. evaluate ``best.pt`` and the last actor (after) on the before-evaluation's starts,
+   plot success vs frames, write ``results.json``.
+
+Files in ``run_dir``:
+
+| file | what |
+|---|---|
+| ``last.ckpt`` | TorchRL ``Checkpoint`` archive: learner modules, optimisers, RNG, progress |
+| ``best.pt`` | actor with the best periodic evaluation (``pilerl.policies.load_actor``); |
+|  | the last actor when ``evaluation.every_frames`` is 0 (no periodic evaluation) |
+| ``final.pt`` | actor after the last update |
+| ``success_curve.png`` | success vs frames per group with Wilson bands |
+| ``evaluations.json`` | every periodic evaluation |
+| ``results.json`` | before / after per group, frames, wall time, collection speed |
+| ``finetune/`` | TorchRL CSV log of every batch |
+| ``videos/`` | one episode per group at each evaluation (``evaluation.video``) |
+
+Resuming restores weights, optimisers, frames, the curriculum position and the history;
+the simulators restart with a seed derived from the number of batches, so a resumed run
+continues the same training, not a bit-identical replay of an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import torch
+from tensordict import TensorDictBase
+from torchrl.checkpoint import Checkpoint, GlobalRNGState
+from tqdm import tqdm
+
+from pilerl.data import EpisodeStore
+from pilerl.io import write_text_atomic
+from pilerl.loggers import make_logger
+from pilerl.policies import CheckpointError, actor_policy, load_actor, save_actor
+
+from .collection import make_collector, sync_weights
+from .config import FinetuneConfig, PPOConfig, validate_finetune_config
+from .envs import TrainingEnvFactory
+from .evaluation import evaluate_groups, plot_success_curve, pool_groups, record_video
+from .ppo import PPOLearner
+from .td3bc import TD3BCLearner
+
+log = logging.getLogger(__name__)
+
+RUN_CHECKPOINT = "last.ckpt"
+BEST_ACTOR = "best.pt"
+FINAL_ACTOR = "final.pt"
+EVAL_ACTOR = "evaluated.pt"  # scratch file the evaluator loads
+RESULTS_FILE = "results.json"
+
+
+def load_cloned_actor(checkpoint: str | Path):
+    """The cloned actor, or a clear error when it cannot be fine-tuned by gradient."""
+    try:
+        actor = load_actor(checkpoint)
+    except (FileNotFoundError, CheckpointError) as error:
+        raise ValueError(f"checkpoint: {error}") from error
+    policy = actor_policy(actor)
+    if not getattr(policy.controller, "has_pre_tanh", False):
+        raise ValueError(
+            f"checkpoint {checkpoint}: controller {policy.config.controller!r} is not a neural "
+            "network with a pre-tanh output; RL fine-tuning needs one (nnet, nnetv2, annet, "
+            "dannet)"
+        )
+    return actor
+
+
+def make_learner(config: FinetuneConfig, actor, demos: TensorDictBase | None):
+    """``PPOLearner`` or ``TD3BCLearner`` for ``config.algorithm``."""
+    if isinstance(config.algorithm, PPOConfig):
+        return PPOLearner(actor, config.algorithm, demos=demos, seed=config.seed)
+    return TD3BCLearner(actor, config.algorithm, demos=demos, seed=config.seed)
+
+
+def _run_identity(config: FinetuneConfig) -> dict:
+    """What a resumed run must share with the run that wrote ``last.ckpt``.
+
+    The frames of the stages are left out: a run may be resumed with a larger budget.
+    """
+    return {
+        "checkpoint": str(config.checkpoint),
+        "algorithm": asdict(config.algorithm),
+        "curriculum": [dict(s.conditions) for s in config.curriculum.stages],
+        "reward_weights": dict(config.reward_weights),
+    }
+
+
+def _batch_stats(batch: TensorDictBase) -> dict[str, float]:
+    """Episodes that ended in ``batch``, their success rate, the mean step reward."""
+    done = batch["next", "done"].reshape(-1)
+    stats = {
+        "reward_mean": float(batch["next", "reward"].mean()),
+        "episodes_ended": float(done.sum()),
+    }
+    if done.any() and ("next", "success") in batch.keys(True):
+        stats["train_success_rate"] = float(batch["next", "success"].reshape(-1)[done].mean())
+    return stats
+
+
+class _Run:
+    """The state of one fine-tuning run and the steps that change it."""
+
+    def __init__(self, config: FinetuneConfig, run_dir: Path, *, progress: bool) -> None:
+        self.config = config
+        self.run_dir = run_dir
+        self.progress = progress
+        self.env_kwargs = config.env.make_kwargs()
+        self.env_kwargs.pop("condition")
+        self.actor = load_cloned_actor(config.checkpoint)
+        self.policy = actor_policy(self.actor)
+        torch.manual_seed(config.seed)
+        demos = EpisodeStore.open(config.demos).to_tensordict() if config.demos else None
+        self.learner = make_learner(config, self.actor, demos)
+        self.state: dict = {
+            "identity": _run_identity(config),
+            "frames": 0,
+            "batches": 0,
+            "last_eval_frames": -1,
+            "last_checkpoint_frames": 0,
+            "best_score": None,
+            "before": None,
+            "before_conditions": None,
+            "evaluations": [],
+            "collection_s": 0.0,
+            "update_s": 0.0,
+            "evaluation_s": 0.0,
+            "wall_s": 0.0,
+        }
+        self.checkpoint = Checkpoint(
+            format="archive",
+            **self.learner.checkpoint_components(),
+            progress=self.state,
+            rng=GlobalRNGState(),
+        )
+        self.logger = make_logger(config.logger.backend, run_dir, experiment_name="finetune")
+
+    # ------------------------------------------------------------------ persistence
+    def resume(self) -> bool:
+        path = self.run_dir / RUN_CHECKPOINT
+        if not path.exists():
+            return False
+        identity = self.state["identity"]
+        self.checkpoint.load(path)
+        if self.state["identity"] != identity:
+            raise ValueError(
+                f"{path}: was written by a run with {self.state['identity']}, not "
+                f"{identity}; use a new run directory"
+            )
+        log.info("resuming %s at %d frames", path, self.state["frames"])
+        return True
+
+    def save(self) -> None:
+        self.checkpoint.save(self.run_dir / RUN_CHECKPOINT)
+        self.state["last_checkpoint_frames"] = self.state["frames"]
+
+    # ------------------------------------------------------------------ evaluation
+    def _evaluate(self, checkpoint: Path | str, *, episodes: int, seed: int) -> tuple[dict, dict]:
+        """(success per group, success per condition) of a saved actor."""
+        evaluation = self.config.evaluation
+        started = time.perf_counter()
+        pooled, records = evaluate_groups(
+            checkpoint,
+            evaluation.groups,
+            simulator=self.config.env.simulator,
+            env_kwargs=self.env_kwargs,
+            episodes=episodes,
+            seed=seed,
+            workers=evaluation.workers,
+            confidence=evaluation.confidence,
+        )
+        self.state["evaluation_s"] += time.perf_counter() - started
+        conditions = dict.fromkeys(r["condition"] for r in records)
+        per_condition = pool_groups(
+            records, {c: [c] for c in conditions}, confidence=evaluation.confidence
+        )
+        return pooled, per_condition
+
+    def evaluate_before(self) -> None:
+        if self.state["before"] is None:
+            evaluation = self.config.evaluation
+            self.state["before"], self.state["before_conditions"] = self._evaluate(
+                self.config.checkpoint,
+                episodes=evaluation.final_episodes,
+                seed=evaluation.final_seed,
+            )
+            log.info("before: %s", _rates(self.state["before"]))
+
+    def evaluate_now(self) -> None:
+        """Periodic evaluation of the current actor; keeps ``best.pt``."""
+        evaluation = self.config.evaluation
+        scratch = save_actor(self.run_dir / EVAL_ACTOR, self.policy)
+        groups, _ = self._evaluate(scratch, episodes=evaluation.episodes, seed=evaluation.seed)
+        frames = self.state["frames"]
+        self.state["evaluations"].append({"frames": frames, "groups": groups})
+        self.state["last_eval_frames"] = frames
+        score = sum(g["success_rate"] for g in groups.values()) / len(groups)
+        if self.state["best_score"] is None or score > self.state["best_score"]:
+            self.state["best_score"] = score
+            save_actor(self.run_dir / BEST_ACTOR, self.policy)
+        for group, result in groups.items():
+            self._log(f"eval_{group}_success_rate", result["success_rate"])
+        if evaluation.video:
+            self._record_videos(frames)
+        self._write_curve()
+        log.info("frames %d: %s", frames, _rates(groups))
+
+    def _record_videos(self, frames: int) -> None:
+        evaluation = self.config.evaluation
+        for group, conditions in evaluation.groups.items():
+            condition = evaluation.video_conditions.get(group, conditions[0])
+            record_video(
+                self.policy,
+                self.run_dir / "videos" / f"{frames:09d}_{group}_{condition}.mp4",
+                simulator=self.config.env.simulator,
+                env_kwargs=self.env_kwargs,
+                condition=condition,
+                seed=evaluation.seed * 100_000,
+            )
+
+    def _write_curve(self) -> None:
+        boundaries, total = [], 0
+        for stage in self.config.curriculum.stages[:-1]:
+            total += stage.frames
+            boundaries.append(total)
+        plot_success_curve(
+            self.state["evaluations"],
+            self.run_dir / "success_curve.png",
+            title=f"{self.policy.config.controller} + {self.config.algorithm.name}",
+            stage_frames=boundaries,
+        )
+        write_text_atomic(
+            self.run_dir / "evaluations.json", json.dumps(self.state["evaluations"], indent=1)
+        )
+
+    # ------------------------------------------------------------------ training
+    def _log(self, name: str, value: float) -> None:
+        if self.logger is not None:
+            self.logger.log_scalar(name, value, step=self.state["frames"])
+
+    def _out_of_time(self, started: float, wall_before: float) -> bool:
+        budget = self.config.time_budget_minutes
+        return budget > 0 and wall_before + time.perf_counter() - started >= 60 * budget
+
+    def _stage_collector(self, conditions: dict[str, float], stage_end: int):
+        """A collector for the rest of one curriculum stage, seeded by the batch count."""
+        config = self.config
+        factory = TrainingEnvFactory(
+            config.env.simulator,
+            self.env_kwargs,
+            conditions,
+            config.reward_weights,
+            num_envs=config.collection.envs_per_worker,
+        )
+        return make_collector(
+            factory,
+            self.learner.collection_policy,
+            frames_per_batch=config.algorithm.frames_per_batch,
+            total_frames=stage_end - self.state["frames"],
+            backend=config.collection.backend,
+            workers=config.collection.workers,
+            seed=config.seed * 1_000_003 + self.state["batches"],
+            ray_init_kwargs=dict(config.collection.ray_init_kwargs),
+        )
+
+    def _learn(self, batch: TensorDictBase, collector) -> None:
+        """One update on a collected batch, then the bookkeeping it makes due."""
+        config, state = self.config, self.state
+        warmup = state["batches"] < config.algorithm.critic_warmup_batches
+        started = time.perf_counter()
+        metrics = self.learner.update(batch, warmup=warmup)
+        sync_weights(collector)
+        state["update_s"] += time.perf_counter() - started
+        state["frames"] += batch.numel()
+        state["batches"] += 1
+        for name, value in {**metrics, **_batch_stats(batch)}.items():
+            self._log(name, value)
+        every = config.evaluation.every_frames
+        if every and state["frames"] - state["last_eval_frames"] >= every:
+            self.evaluate_now()
+
+    def train(self) -> bool:
+        """Run the remaining curriculum; ``False`` if the time budget cut it short."""
+        config, state = self.config, self.state
+        started, wall_before = time.perf_counter(), state["wall_s"]
+        bar = tqdm(
+            total=sum(stage.frames for stage in config.curriculum.stages),
+            initial=state["frames"],
+            desc=f"fine-tuning ({config.algorithm.name})",
+            unit="frame",
+            disable=not self.progress,
+        )
+        stage_end, in_time = 0, True
+        for stage in config.curriculum.stages:
+            stage_end += stage.frames
+            if state["frames"] >= stage_end or not in_time:
+                continue
+            collector = self._stage_collector(stage.conditions, stage_end)
+            try:
+                tick = time.perf_counter()
+                for batch in collector:
+                    state["collection_s"] += time.perf_counter() - tick
+                    self._learn(batch, collector)
+                    state["wall_s"] = wall_before + time.perf_counter() - started
+                    bar.update(batch.numel())
+                    due = state["frames"] - state["last_checkpoint_frames"]
+                    if due >= config.checkpoint_every_frames:
+                        self.save()
+                    in_time = not self._out_of_time(started, wall_before)
+                    if not in_time:
+                        break
+                    tick = time.perf_counter()
+            finally:
+                collector.shutdown()
+        bar.close()
+        state["wall_s"] = wall_before + time.perf_counter() - started
+        if config.evaluation.every_frames and state["last_eval_frames"] != state["frames"]:
+            self.evaluate_now()
+        self.save()
+        return in_time
+
+    # ------------------------------------------------------------------ results
+    def results(self, finished: bool) -> dict:
+        evaluation = self.config.evaluation
+        final = save_actor(self.run_dir / FINAL_ACTOR, self.policy)
+        after_final, final_conditions = self._evaluate(
+            final, episodes=evaluation.final_episodes, seed=evaluation.final_seed
+        )
+        if evaluation.every_frames:
+            after_best, best_conditions = self._evaluate(
+                self.run_dir / BEST_ACTOR,
+                episodes=evaluation.final_episodes,
+                seed=evaluation.final_seed,
+            )
+        else:  # no periodic evaluation to choose by: the last actor is the best one known
+            save_actor(self.run_dir / BEST_ACTOR, self.policy)
+            after_best, best_conditions = after_final, final_conditions
+        (self.run_dir / EVAL_ACTOR).unlink(missing_ok=True)
+        state = self.state
+        metrics = {
+            "controller": self.policy.config.controller,
+            "algorithm": self.config.algorithm.name,
+            "checkpoint": str(self.config.checkpoint),
+            "finished_curriculum": finished,
+            "frames": state["frames"],
+            "batches": state["batches"],
+            "wall_s": state["wall_s"],
+            "collection_s": state["collection_s"],
+            "update_s": state["update_s"],
+            "evaluation_s": state["evaluation_s"],
+            "collection_fps": state["frames"] / state["collection_s"]
+            if state["collection_s"]
+            else None,
+            "before": state["before"],
+            "after_best": after_best,
+            "after_final": after_final,
+            "best_periodic_score": state["best_score"],
+            "conditions": {
+                "before": state["before_conditions"],
+                "after_best": best_conditions,
+                "after_final": final_conditions,
+            },
+        }
+        write_text_atomic(self.run_dir / RESULTS_FILE, json.dumps(metrics, indent=1))
+        log.info("after (best.pt): %s", _rates(after_best))
+        return metrics
+
+
+def _rates(groups: dict) -> str:
+    return ", ".join(
+        f"{g} {r['successes']}/{r['episodes']} [{r['success_low']:.2f}, {r['success_high']:.2f}]"
+        for g, r in groups.items()
+    )
+
+
+def flat_metrics(results: dict) -> dict[str, float]:
+    """The numbers of ``results`` as one flat mapping (for ``pilerl.sweeps.mark_done``)."""
+    flat = {
+        key: float(results[key])
+        for key in ("frames", "batches", "wall_s", "collection_s", "update_s", "evaluation_s")
+    }
+    if results["collection_fps"] is not None:
+        flat["collection_fps"] = float(results["collection_fps"])
+    for when in ("before", "after_best", "after_final"):
+        for group, result in results[when].items():
+            for name in ("success_rate", "success_low", "success_high"):
+                flat[f"{when}_{group}_{name}"] = float(result[name])
+    return flat
+
+
+def finetune(config: FinetuneConfig, run_dir: str | Path, *, progress: bool = True) -> dict:
+    """Fine-tune ``config.checkpoint`` by RL; returns ``results.json``'s content.
+
+    Running again with the same ``run_dir`` resumes from ``last.ckpt``.
+    """
+    validate_finetune_config(config)
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    run = _Run(config, run_dir, progress=progress)
+    run.resume()
+    run.evaluate_before()
+    if config.evaluation.every_frames and not run.state["evaluations"]:
+        run.evaluate_now()  # the cloned actor: the curve's first point and best.pt so far
+        run.save()
+    finished = run.train()
+    return run.results(finished)
