@@ -52,6 +52,7 @@ def main(cfg: DictConfig) -> float:
         out_dir,
         workers=config.evaluation.workers,
         videos=config.evaluation.videos,
+        video_conditions=config.evaluation.video_conditions,
         render_size=(config.evaluation.render_height, config.evaluation.render_width),
     )
     per_condition = [row for name, row in summary.items() if name in config.evaluation.conditions]

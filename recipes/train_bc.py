@@ -137,6 +137,7 @@ def main(cfg: DictConfig) -> float:
             run_dir / "evaluation",
             workers=config.evaluation.workers,
             videos=config.evaluation.videos,
+            video_conditions=config.evaluation.video_conditions,
             render_size=(config.evaluation.render_height, config.evaluation.render_width),
         )
         metrics |= {f"{name}_success_rate": row["success_rate"] for name, row in summary.items()}

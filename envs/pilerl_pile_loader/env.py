@@ -240,6 +240,9 @@ class PileLoadingEnv(gym.Env):
         if self._renderer is None:
             height, width = self.render_size
             self._renderer = mujoco.Renderer(self.model, height=height, width=width)
+            # offscreen rendering runs in software on machines without a GPU: reflections
+            # double the cost of a frame and show little on a gravel site
+            self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
         self.soil.prepare_render(self._renderer)
         self._renderer.update_scene(self.data, camera=self.camera)
         return self._renderer.render()

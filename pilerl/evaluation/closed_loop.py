@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import statistics
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +40,7 @@ def run_closed_loop(
     *,
     workers: int | None = None,
     videos: bool = False,
+    video_conditions: Sequence[str] | None = None,
     render_size: tuple[int, int] = (360, 640),
     camera: str = "side",
     progress: bool = True,
@@ -51,6 +53,7 @@ def run_closed_loop(
         plan: simulator, conditions, episodes per condition and base seed.
         workers: episode processes (default: one per core).
         videos: render the chosen rollouts to mp4.
+        video_conditions: render only these conditions' rollouts (``None``: all).
         render_size: video frame (height, width) [px].
         camera: MJCF camera of the videos.
 
@@ -66,6 +69,8 @@ def run_closed_loop(
     plot_fill(records, out_dir / "fill.png", title=controller.name)
     if videos:
         for record in chosen_rollouts(records):
+            if video_conditions is not None and record["condition"] not in video_conditions:
+                continue
             path = out_dir / "videos" / f"{record['condition']}_episode{record['episode']}.mp4"
             render_rollout(controller, plan, record, path, render_size=render_size, camera=camera)
     for name, row in summary.items():

@@ -237,6 +237,17 @@ EXP3_CLAIMS: list[Claim] = [
         ],
     ),
     (
+        "DANNet with p_t and s′ is the best controller on both datasets (the paper: 100%, "
+        "with ANNet, against NNetV2's 0%).",
+        _pairs(
+            [
+                (_w("dannet", "s_pt_sprime", d), _w(c, "s_pt_sprime", d))
+                for d in ("d_i", "d_ii")
+                for c in ("nnetv2", "annet")
+            ]
+        ),
+    ),
+    (
         "Without p_t, attention does not help on D_II (the paper: all three 0%).",
         _all_below([_w(c, "s", "d_ii") for c in ("nnetv2", "annet", "dannet")], 0.2),
     ),
@@ -318,15 +329,17 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
     for ax, dataset in zip(axes[0], datasets, strict=True):
         for c in (c for c in curves if c.dataset == dataset):
             label = _controller_label(c.controller, c.sensors)
-            ax.plot(c.epoch, c.validation_mean, label=label)
+            x = c.epoch * c.steps_per_epoch if c.steps_per_epoch else c.epoch
+            ax.plot(x, c.validation_mean, "o-" if len(x) < 10 else "-", ms=4, label=label)
             ax.fill_between(
-                c.epoch,
+                x,
                 c.validation_mean - c.validation_std,
                 c.validation_mean + c.validation_std,
                 alpha=0.2,
             )
         ax.set_title(f"trained on {DATASET_LABELS.get(dataset, dataset)}")
-        ax.set_xlabel("epoch")
+        steps = all(c.steps_per_epoch for c in curves)
+        ax.set_xlabel("gradient steps" if steps else "epoch")
         ax.set_ylabel("validation MSE (winter demos)")
         ax.legend(fontsize=7)
     save_figure(fig, out_dir / "exp4_validation_loss.png")
@@ -459,6 +472,46 @@ def _controller_name(actor) -> str:
     return actor_policy(actor).config.controller
 
 
+def at_a_glance(compared: list[tuple[str, dict, dict, list]]) -> Report:
+    """Per experiment: how many cells agree, which way the others lean, why scoops failed."""
+    glance = Report("")
+    glance.heading("At a glance")
+    rows, modes = [], {}
+    for title, paper, cells, claims in compared:
+        verdicts = [row[8] for row in comparison_rows(paper, cells) if row[5] != "not run"]
+        held = [row[1] for row in claim_rows(claims, cells)]
+        rows.append(
+            [
+                title,
+                f"{verdicts.count('agrees')}/{len(verdicts)}",
+                verdicts.count("sim higher"),
+                verdicts.count("sim lower"),
+                f"{held.count('holds')} hold, {held.count('holds in part')} in part, "
+                f"{held.count('does not hold')} do not",
+            ]
+        )
+        for key in paper:
+            for mode, n in cells[key].failure_modes.items() if key in cells else ():
+                modes[mode] = modes.get(mode, 0) + n
+    glance.table(
+        ["experiment", "paper inside the CI", "sim higher", "sim lower", "the paper's claims"],
+        rows,
+    )
+    failed = sum(modes.values())
+    if failed:
+        glance.paragraph(
+            "Why the simulated scoops failed, over every failed episode of the tables above: "
+            + ", ".join(
+                f"{FAILURE_LABELS.get(m, m)} {100 * n / failed:.0f}%"
+                for m, n in sorted(modes.items(), key=lambda kv: -kv[1])
+                if n
+            )
+            + f' ({failed} episodes). The paper: "the main failure cases were early boom '
+            'rising and no boom rising at all".'
+        )
+    return glance
+
+
 def build_report(
     *,
     out_dir: str | Path,
@@ -500,9 +553,11 @@ def build_report(
         ),
         (exp3, "Exp. 3: attention (Table IV)", paper_numbers.TABLE_IV, EXP3_CLAIMS, "exp3.png"),
     ]
+    glance_at = len(report.blocks)
+    compared = []
     for sweep_dir, title, paper, claims, figure in experiments:
         if sweep_dir is not None:
-            add_closed_loop_experiment(
+            cells = add_closed_loop_experiment(
                 report,
                 title=title,
                 sweep_dir=Path(sweep_dir),
@@ -511,6 +566,9 @@ def build_report(
                 out_dir=out_dir,
                 figure=figure,
             )
+            compared.append((title, paper, cells, claims))
+    if compared:
+        report.blocks[glance_at:glance_at] = at_a_glance(compared).blocks
     if exp4 is not None:
         add_offline_validation(report, Path(exp4), out_dir)
     if figure_actors and figure_demos is not None:

@@ -132,6 +132,7 @@ class LossCurves:
     dataset: str
     seeds: int
     epoch: np.ndarray
+    steps_per_epoch: int | None  # None: the training set is not here to count its rows
     validation_mean: np.ndarray
     validation_std: np.ndarray
 
@@ -155,8 +156,18 @@ def offline_validation_curves(sweep_dir: str | Path) -> list[LossCurves]:
                 dataset=setup.dataset,
                 seeds=int(json.loads((job_dir / "metrics.json").read_text())["seeds"]),
                 epoch=np.array([float(r["epoch"]) for r in rows]),
+                steps_per_epoch=_steps_per_epoch(setup.config),
                 validation_mean=np.array([float(r["validation_mean"]) for r in rows]),
                 validation_std=np.array([float(r["validation_std"]) for r in rows]),
             )
         )
     return curves
+
+
+def _steps_per_epoch(config: dict) -> int | None:
+    """Gradient steps per epoch of a job, from its training set's size (if it is here)."""
+    index = Path(config["train_data"]) / "index.json"
+    if not index.exists():
+        return None
+    rows = sum(int(e["n_samples"]) for e in json.loads(index.read_text())["episodes"])
+    return -(-rows // int(config.get("batch_size", 512)))
