@@ -56,23 +56,26 @@ def test_winter_conditions_are_also_pooled():
 
 
 @pytest.mark.parametrize(
-    ("success", "tipped", "lift_s", "penetration_s", "mode"),
+    ("success", "tipped", "finished", "lift_s", "penetration_s", "mode"),
     [
-        (True, False, 5.0, 4.0, "success"),
-        (False, True, 5.0, 4.0, "tipped"),
-        (False, False, math.nan, 4.0, "no_boom_rise"),
-        (False, False, 2.0, 4.0, "early_boom_rise"),
-        (False, False, 2.0, math.nan, "early_boom_rise"),
-        (False, False, 5.0, 4.0, "underfilled"),
+        (True, False, True, 5.0, 4.0, "success"),
+        (False, True, False, 5.0, 4.0, "tipped"),
+        (False, False, False, math.nan, 4.0, "no_boom_rise"),
+        (False, False, True, 2.0, 4.0, "early_boom_rise"),
+        (False, False, True, 2.0, math.nan, "early_boom_rise"),
+        (False, False, True, 5.0, 4.0, "underfilled"),
+        (False, False, False, 5.0, 4.0, "unfinished"),
     ],
 )
-def test_failure_modes_in_the_papers_words(success, tipped, lift_s, penetration_s, mode):
-    assert (
-        failure_mode(
-            success=success, tipped=tipped, first_lift_s=lift_s, penetration_s=penetration_s
-        )
-        == mode
+def test_failure_modes_in_the_papers_words(success, tipped, finished, lift_s, penetration_s, mode):
+    found = failure_mode(
+        success=success,
+        tipped=tipped,
+        finished=finished,
+        first_lift_s=lift_s,
+        penetration_s=penetration_s,
     )
+    assert found == mode
 
 
 def test_a_scripted_early_lift_is_recorded_as_an_early_boom_rise():
@@ -208,6 +211,10 @@ def test_train_bc_tests_its_controller_in_closed_loop_and_a_report_builds(datase
     assert "| RF | θ1, θ2, p_d | D_I | winter | " not in markdown.read_text()  # not a paper cell
     cells, finished, _ = closed_loop_cells(tmp_path / "sweep")
     assert cells[("rf", "s", "d_i", "winter")].episodes == 1
+    # failures are classified again from episodes.csv: as many as the failed episodes
+    for test in ("summer", "winter"):
+        cell = cells[("rf", "s", "d_i", test)]
+        assert sum(cell.failure_modes.values()) == cell.episodes - cell.successes
 
 
 def test_train_bc_rejects_closed_loop_evaluation_of_an_ensemble(tmp_path):

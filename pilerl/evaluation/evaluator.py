@@ -167,9 +167,11 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
         "max_cutting_depth_m": max_depth,
         "first_lift_s": first_lift_s,
         "penetration_s": penetration_s,
+        "tipped": bool(info.get("tipped", False)),
         "failure_mode": failure_mode(
             success=bool(info["success"]),
             tipped=bool(info.get("tipped", False)),
+            finished=bool(info.get("scoop_finished", False)),
             first_lift_s=first_lift_s,
             penetration_s=penetration_s,
         ),
@@ -180,13 +182,21 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
 # early boom rising and no boom rising at all"), decided from what was measured.
 LIFT_COMMAND = 0.3  # boom control above this is a lift
 PENETRATION_M = 0.10  # cutting-edge depth in the pile that counts as having dug in [m]
-FAILURE_MODES = ("early_boom_rise", "no_boom_rise", "tipped", "underfilled")
+FAILURE_MODES = ("early_boom_rise", "no_boom_rise", "tipped", "underfilled", "unfinished")
 
 
-def failure_mode(*, success: bool, tipped: bool, first_lift_s: float, penetration_s: float) -> str:
+def failure_mode(
+    *,
+    success: bool,
+    tipped: bool,
+    first_lift_s: float,
+    penetration_s: float,
+    finished: bool = True,
+) -> str:
     """``success``, or why not: ``tipped``; ``no_boom_rise`` (the boom was never lifted);
     ``early_boom_rise`` (lifted before the edge was ``PENETRATION_M`` deep in the pile);
-    ``underfilled`` (dug in and lifted, but less than half full)."""
+    ``underfilled`` (dug in, lifted and finished the scoop less than half full);
+    ``unfinished`` (dug in and lifted, but not curled and raised before the time limit)."""
     if success:
         return "success"
     if tipped:
@@ -195,7 +205,7 @@ def failure_mode(*, success: bool, tipped: bool, first_lift_s: float, penetratio
         return "no_boom_rise"
     if math.isnan(penetration_s) or first_lift_s < penetration_s:
         return "early_boom_rise"
-    return "underfilled"
+    return "underfilled" if finished else "unfinished"
 
 
 def _control_index(env, name: str) -> int | None:

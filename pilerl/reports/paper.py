@@ -93,6 +93,7 @@ FAILURE_LABELS = {
     "early_boom_rise": "early lift",
     "no_boom_rise": "no lift",
     "underfilled": "underfilled",
+    "unfinished": "not finished in time",
     "tipped": "tipped",
 }
 
