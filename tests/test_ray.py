@@ -8,7 +8,6 @@ cluster started with ``ray start --head``.
 from __future__ import annotations
 
 import functools
-import importlib.util
 import json
 import os
 import subprocess
@@ -20,6 +19,7 @@ import ray
 import torch
 import yaml
 from hydra import compose, initialize_config_dir
+from test_rl import cloned, tiny_config, tiny_ppo  # noqa: F401  (cloned: a fixture)
 
 from hydra_plugins.pilerl_ray_launcher import _core as ray_launcher_core
 from hydra_plugins.pilerl_ray_launcher.config import DEFAULT_ENV_VARS, RayLauncherConf
@@ -27,14 +27,10 @@ from hydra_plugins.pilerl_ray_launcher.ray_launcher import RayLauncher
 from pilerl.config import register_configs
 from pilerl.data import EpisodeMeta, EpisodeStore, make_episode
 from pilerl.policies import make_actor
+from pilerl.rl import ray_collection
 from pilerl.sim import make_torchrl_env
 
 ROOT = Path(__file__).resolve().parents[1]
-SPEC = importlib.util.spec_from_file_location(
-    "pilerl_ray_collection", ROOT / "pilerl" / "rl" / "ray_collection.py"
-)
-ray_collection = importlib.util.module_from_spec(SPEC)
-SPEC.loader.exec_module(ray_collection)
 
 SENSORS = [
     "boom_angle",
@@ -259,3 +255,14 @@ def test_launcher_presets_compose_into_launcher_settings(preset):
     else:
         assert settings.init_kwargs() == {"address": "auto"}
         assert options["memory"] == 4 * 1024**3
+
+
+def test_ppo_fine_tuning_collects_on_ray(ray_address, cloned, tmp_path):  # noqa: F811
+    from pilerl.rl import CollectionConfig, finetune
+
+    checkpoint, demos_dir, _ = cloned
+    config = tiny_config(checkpoint, demos_dir, tmp_path, tiny_ppo(), frames=128)
+    config.collection = CollectionConfig(backend="ray", workers=2, envs_per_worker=1)
+    results = finetune(config, tmp_path, progress=False)
+    assert results["frames"] == 128 and results["batches"] == 2
+    assert (tmp_path / "final.pt").exists() and results["collection_fps"] > 0
