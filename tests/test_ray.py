@@ -19,6 +19,7 @@ import ray
 import torch
 import yaml
 from hydra import compose, initialize_config_dir
+from pilerl_pile_loader.sensors import SENSOR_NAMES
 from test_rl import cloned, tiny_config, tiny_ppo  # noqa: F401  (cloned: a fixture)
 
 from hydra_plugins.pilerl_ray_launcher import _core as ray_launcher_core
@@ -32,15 +33,7 @@ from pilerl.sim import make_torchrl_env
 
 ROOT = Path(__file__).resolve().parents[1]
 
-SENSORS = [
-    "boom_angle",
-    "bucket_angle",
-    "drive_pressure",
-    "telescope_pressure",
-    "boom_pressure",
-    "bucket_pressure",
-    "pump_angle",
-]
+SENSORS = list(SENSOR_NAMES)  # the pile loader's seven sensors
 ACTOR_SENSORS = SENSORS[:4]
 
 # TorchRL 0.14 defines its legacy weight updaters when torchrl.collectors.distributed loads
