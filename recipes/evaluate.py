@@ -18,7 +18,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import EvaluateConfig, register_configs
 from pilerl.evaluation.closed_loop import run_closed_loop
-from pilerl.evaluation.evaluator import ActorController, ScriptedController
+from pilerl.evaluation.evaluator import ActorController, ScriptedController, success_metrics
 from pilerl.policies import load_actor
 from pilerl.runtime import limit_threads
 from pilerl.sweeps import is_done, mark_done
@@ -61,8 +61,7 @@ def main(cfg: DictConfig) -> float:
     )
     mark_done(
         out_dir,
-        {f"{name}_success_rate": row["success_rate"] for name, row in summary.items()}
-        | {"success_rate": success_rate},
+        success_metrics(summary) | {"success_rate": success_rate},
     )
     return success_rate
 

@@ -26,6 +26,7 @@ from pilerl.config import register_configs
 from pilerl.config.pipeline import PipelineConfig
 from pilerl.data import EpisodeStore, RecordingPlan, build_dataset, record_demonstrations
 from pilerl.evaluation import ActorController, run_closed_loop
+from pilerl.evaluation.evaluator import success_metrics
 from pilerl.loggers import make_logger
 from pilerl.policies import NEURAL_CONTROLLERS, controller_inputs, make_actor
 from pilerl.reports.pipeline import write_pipeline_report
@@ -124,8 +125,7 @@ def main(cfg: DictConfig) -> None:
     log.info("report: %s", report)
     mark_done(
         out,
-        {f"cloned_{k}_success_rate": v["success_rate"] for k, v in cloned.items()}
-        | {f"finetuned_{k}_success_rate": v["success_rate"] for k, v in finetuned.items()},
+        success_metrics(cloned, "cloned_") | success_metrics(finetuned, "finetuned_"),
     )
 
 

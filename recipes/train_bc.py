@@ -24,7 +24,7 @@ from omegaconf import DictConfig, OmegaConf
 from pilerl.config import TrainBCConfig, register_configs
 from pilerl.data import EpisodeStore
 from pilerl.evaluation.closed_loop import run_closed_loop
-from pilerl.evaluation.evaluator import ActorController
+from pilerl.evaluation.evaluator import ActorController, success_metrics
 from pilerl.loggers import make_logger
 from pilerl.policies import controller_inputs, get_spec, make_actor
 from pilerl.runtime import limit_threads
@@ -140,7 +140,7 @@ def main(cfg: DictConfig) -> float:
             video_conditions=config.evaluation.video_conditions,
             render_size=(config.evaluation.render_height, config.evaluation.render_width),
         )
-        metrics |= {f"{name}_success_rate": row["success_rate"] for name, row in summary.items()}
+        metrics |= success_metrics(summary)
     mark_done(run_dir, metrics)
     return _objective(metrics)
 

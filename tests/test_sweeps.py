@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from pilerl.evaluation.metrics import wilson_interval
 from pilerl.sweeps import is_done, mark_done, summarize_sweep
 from pilerl.sweeps.summary import main as summary_main
 
@@ -40,6 +41,29 @@ def test_summary_groups_by_swept_keys_and_averages_seeds(tmp_path):
     table = (tmp_path / "sweep_summary.md").read_text()
     assert "3 of 4 jobs finished" in table and "| dannet | 2 |" in table
     assert (tmp_path / "sweep_summary.csv").read_text().startswith("policy,n_jobs,")
+    assert (tmp_path / "sweep_summary.png").stat().st_size > 0
+
+
+def test_success_counts_are_pooled_over_seeds_into_a_wilson_interval(tmp_path):
+    for seed, successes in ((0, 3), (1, 5)):
+        metrics = {
+            "winter_success_rate": successes / 8,
+            "winter_successes": successes,
+            "winter_episodes": 8,
+        }
+        fake_job(tmp_path, seed, ["policy=dannet", f"seed={seed}"], metrics)
+    fake_job(
+        tmp_path,
+        2,
+        ["policy=nnet", "seed=0"],
+        {"winter_success_rate": 0.0, "winter_successes": 0, "winter_episodes": 8},
+    )
+    rows = summarize_sweep(tmp_path, plot_metric="winter_success_rate")
+    dannet = rows[0]
+    assert dannet["winter_pooled_success_rate"] == 0.5  # 8 of 16 episodes
+    low, high = wilson_interval(8, 16)
+    assert (dannet["winter_success_low"], dannet["winter_success_high"]) == (low, high)
+    assert rows[1]["winter_success_high"] == pytest.approx(wilson_interval(0, 8)[1])
     assert (tmp_path / "sweep_summary.png").stat().st_size > 0
 
 

@@ -279,6 +279,18 @@ def _summarize_rows(rows: Sequence[dict], confidence: float) -> dict:
     }
 
 
+def success_metrics(summary: dict[str, dict], prefix: str = "") -> dict[str, float]:
+    """Flat ``metrics.json`` entries of a summary: ``<prefix><test>_success_rate``,
+    ``_successes`` and ``_episodes`` per condition (counts let sweep summaries pool
+    seeds into one Wilson interval)."""
+    metrics: dict[str, float] = {}
+    for name, row in summary.items():
+        metrics[f"{prefix}{name}_success_rate"] = row["success_rate"]
+        metrics[f"{prefix}{name}_successes"] = row["successes"]
+        metrics[f"{prefix}{name}_episodes"] = row["episodes"]
+    return metrics
+
+
 def write_results(records: Sequence[dict], summary: dict, out_dir: str | Path) -> None:
     """``episodes.csv`` (one row per episode) and ``summary.json``, atomically."""
     import json
@@ -304,6 +316,7 @@ __all__ = [
     "clear_caches",
     "evaluate",
     "failure_mode",
+    "success_metrics",
     "summarize",
     "write_results",
 ]

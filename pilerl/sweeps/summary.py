@@ -24,6 +24,7 @@ from pathlib import Path
 
 import yaml
 
+from pilerl.evaluation.metrics import wilson_interval
 from pilerl.io import write_text_atomic
 
 from .completion import METRICS_FILE
@@ -76,7 +77,11 @@ def summarize_sweep(
     """Group finished jobs by swept keys and write ``sweep_summary.{csv,md,png}``.
 
     Returns one row per group: the swept values, ``n_jobs``, and for every numeric metric
-    ``<metric>_mean`` and ``<metric>_std`` (std is 0 for a single job).
+    ``<metric>_mean`` and ``<metric>_std`` (std is 0 for a single job). Jobs that report
+    ``<test>_successes`` and ``<test>_episodes`` (train_bc's closed-loop step, evaluate)
+    also get ``<test>_pooled_success_rate`` with its 95% Wilson interval
+    (``<test>_success_low`` / ``_high``) over all the group's episodes; plotting
+    ``<test>_success_rate`` then shows that interval.
     """
     jobs = load_jobs(sweep_dir)
     finished = [j for j in jobs if j.metrics is not None]
@@ -93,6 +98,13 @@ def summarize_sweep(
     metric_names = sorted(
         {k for j in finished for k, v in j.metrics.items() if isinstance(v, int | float)}
     )
+    # success counts (<test>_successes, <test>_episodes) are pooled over a group's jobs
+    counted = sorted(
+        name.removesuffix("_successes")
+        for name in metric_names
+        if name.endswith("_successes")
+        and name.removesuffix("_successes") + "_episodes" in metric_names
+    )
     rows = []
     for values, members in sorted(groups.items()):
         row: dict = dict(zip(group_keys, values, strict=True))
@@ -101,6 +113,13 @@ def summarize_sweep(
             samples = [float(j.metrics[name]) for j in members if name in j.metrics]
             row[f"{name}_mean"] = statistics.fmean(samples) if samples else math.nan
             row[f"{name}_std"] = statistics.stdev(samples) if len(samples) > 1 else 0.0
+        for test in counted:
+            successes = sum(int(j.metrics.get(f"{test}_successes", 0)) for j in members)
+            episodes = sum(int(j.metrics.get(f"{test}_episodes", 0)) for j in members)
+            low, high = wilson_interval(successes, episodes) if episodes else (math.nan,) * 2
+            row[f"{test}_pooled_success_rate"] = successes / episodes if episodes else math.nan
+            row[f"{test}_success_low"] = low
+            row[f"{test}_success_high"] = high
         rows.append(row)
     out_dir = Path(out_dir or sweep_dir)
     columns = list(rows[0])
@@ -142,12 +161,23 @@ def _plot(path: Path, rows: list[dict], group_keys: list[str], metric: str) -> N
     from pilerl.figures import save_figure
 
     labels = [", ".join(f"{k}={row[k]}" for k in group_keys) or "all" for row in rows]
-    means = [row.get(f"{metric}_mean", math.nan) for row in rows]
-    stds = [row.get(f"{metric}_std", 0.0) for row in rows]
+    test = metric.removesuffix("_success_rate")
+    if metric.endswith("_success_rate") and f"{test}_pooled_success_rate" in rows[0]:
+        # a success rate: pooled over the group's episodes, with its 95% Wilson interval
+        means = [row[f"{test}_pooled_success_rate"] for row in rows]
+        errors = [
+            [m - row[f"{test}_success_low"] for m, row in zip(means, rows, strict=True)],
+            [row[f"{test}_success_high"] - m for m, row in zip(means, rows, strict=True)],
+        ]
+        label = f"{metric} (pooled over jobs, 95% Wilson interval)"
+    else:
+        means = [row.get(f"{metric}_mean", math.nan) for row in rows]
+        errors = [row.get(f"{metric}_std", 0.0) for row in rows]
+        label = f"{metric} (mean ± std over jobs)"
     fig, ax = plt.subplots(figsize=(max(4, 1.2 * len(rows)), 4))
-    ax.bar(range(len(rows)), means, yerr=stds, capsize=4, color="tab:blue", alpha=0.8)
+    ax.bar(range(len(rows)), means, yerr=errors, capsize=4, color="tab:blue", alpha=0.8)
     ax.set_xticks(range(len(rows)), labels, rotation=30, ha="right", fontsize=8)
-    ax.set_ylabel(f"{metric} (mean ± std over jobs)")
+    ax.set_ylabel(label)
     ax.grid(axis="y", alpha=0.3)
     save_figure(fig, path)
 
