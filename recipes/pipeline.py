@@ -26,7 +26,7 @@ from pilerl.config import register_configs
 from pilerl.config.pipeline import PipelineConfig
 from pilerl.data import EpisodeStore, RecordingPlan, build_dataset, record_demonstrations
 from pilerl.evaluation import ActorController, run_closed_loop
-from pilerl.evaluation.evaluator import success_metrics
+from pilerl.evaluation.evaluator import build_envs, success_metrics
 from pilerl.loggers import make_logger
 from pilerl.policies import NEURAL_CONTROLLERS, controller_inputs, make_actor
 from pilerl.reports.pipeline import write_pipeline_report
@@ -54,6 +54,7 @@ def main(cfg: DictConfig) -> None:
     rl_config = dataclasses.replace(config.finetune, env=config.env)
     validate_finetune_config(rl_config, inputs_exist=False)  # bad RL settings fail now
     plan = config.evaluation.plan(config.env)
+    build_envs(plan)  # a bad condition or env setting fails before any work
     bc_dir = Path(rl_config.checkpoint).parent
 
     # --- 1. demonstrations: summer (training) and winter_c (validation, figures)

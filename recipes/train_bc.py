@@ -24,7 +24,7 @@ from omegaconf import DictConfig, OmegaConf
 from pilerl.config import TrainBCConfig, register_configs
 from pilerl.data import EpisodeStore
 from pilerl.evaluation.closed_loop import run_closed_loop
-from pilerl.evaluation.evaluator import ActorController, success_metrics
+from pilerl.evaluation.evaluator import ActorController, build_envs, success_metrics
 from pilerl.loggers import make_logger
 from pilerl.policies import controller_inputs, get_spec, make_actor
 from pilerl.runtime import limit_threads
@@ -82,7 +82,8 @@ def main(cfg: DictConfig) -> float:
         options=config.policy.options,
     )
     if config.evaluation.episodes > 0:
-        plan = config.evaluation.plan(config.env)  # bad evaluation settings fail now
+        plan = config.evaluation.plan(config.env)
+        build_envs(plan)  # a bad condition or env setting fails now, not after training
     settings = BCSettings(
         epochs=_epochs(config, train.batch_size[0]),
         batch_size=config.batch_size,

@@ -217,6 +217,19 @@ def test_train_bc_tests_its_controller_in_closed_loop_and_a_report_builds(datase
         assert sum(cell.failure_modes.values()) == cell.episodes - cell.successes
 
 
+def test_train_bc_rejects_an_unknown_test_condition_before_training(datasets, tmp_path):
+    root, _, _ = datasets
+    result = train_bc_recipe(
+        f"hydra.run.dir={tmp_path}",
+        "policy=rf",
+        "evaluation.episodes=1",
+        "evaluation.conditions=[summer,spring]",
+        data_root=root,
+    )
+    assert result.returncode != 0 and "unknown condition 'spring'" in result.stderr
+    assert not (tmp_path / "best.pt").exists() and not (tmp_path / "evaluation").exists()
+
+
 def test_train_bc_rejects_closed_loop_evaluation_of_an_ensemble(tmp_path):
     result = train_bc_recipe(
         f"hydra.run.dir={tmp_path}", "ensemble_seeds=3", "evaluation.episodes=2"

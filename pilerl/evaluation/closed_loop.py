@@ -60,8 +60,6 @@ def run_closed_loop(
     Returns the summary (as in ``summary.json``).
     """
     out_dir = Path(out_dir)
-    for condition in plan.conditions:  # a bad condition or parameter fails before any work
-        make_gym_env(plan.simulator, **plan.env_kwargs, condition=condition).close()
     records = evaluate(controller, plan, workers=workers, progress=progress)
     summary = summarize(records)
     write_results(records, summary, out_dir)

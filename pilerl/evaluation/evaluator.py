@@ -116,6 +116,13 @@ def _cached_operator(controller, dt: float):
     return _OPERATORS[key]
 
 
+def build_envs(plan: EvaluationPlan) -> None:
+    """Build (and keep) each condition's env of ``plan`` in this process: a bad condition
+    or simulator argument fails here, before any work, and forked workers inherit them."""
+    for condition in plan.conditions:
+        _cached_env(plan, condition)
+
+
 def clear_caches() -> None:
     """Close and forget the cached envs and operators of this process."""
     for env in _ENVS.values():
@@ -217,6 +224,7 @@ def evaluate(
     controller, plan: EvaluationPlan, *, workers: int | None = None, progress: bool = True
 ) -> list[dict]:
     """One record per episode, ordered by condition then episode."""
+    build_envs(plan)
     jobs = [(c, i) for c in plan.conditions for i in range(plan.episodes)]
     workers = workers if workers is not None else min(os.cpu_count() or 1, len(jobs))
     bar = tqdm(
@@ -249,13 +257,15 @@ def summarize(records: Sequence[dict], *, confidence: float = 0.95) -> dict[str,
     winter = [c for c in conditions if c.startswith("winter_")]
     if len(winter) >= 2 and WINTER_POOL not in groups:
         groups[WINTER_POOL] = [r for r in records if r["condition"] in winter]
-    return {name: _summarize_rows(rows, confidence) for name, rows in groups.items()}
+    return {name: summarize_rows(rows, confidence) for name, rows in groups.items()}
 
 
 WINTER_POOL = "winter"
 
 
-def _summarize_rows(rows: Sequence[dict], confidence: float) -> dict:
+def summarize_rows(rows: Sequence[dict], confidence: float = 0.95) -> dict:
+    """Success (with its Wilson interval), fill, time, slip, spill and failure modes of
+    any set of episode records."""
     successes = sum(r["success"] for r in rows)
     low, high = wilson_interval(successes, len(rows), confidence=confidence)
     fills = [r["fill_fraction"] for r in rows]
@@ -313,10 +323,12 @@ __all__ = [
     "ActorController",
     "EvaluationPlan",
     "ScriptedController",
+    "build_envs",
     "clear_caches",
     "evaluate",
     "failure_mode",
     "success_metrics",
     "summarize",
+    "summarize_rows",
     "write_results",
 ]

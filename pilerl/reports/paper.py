@@ -3,7 +3,8 @@
     python -m pilerl.reports.paper \\
         --exp1 multirun/exp1_summer_to_winter --exp2 multirun/exp2_data_and_pt \\
         --exp3 multirun/exp3_attention --exp4 multirun/exp4_offline_validation \\
-        --demos data/demos/winter_c_validation --out docs/results/paper
+        --figure-actor DANNet=<job>/best.pt --figure-demos data/demos/winter_c_validation \\
+        --out docs/results/paper
 
 Every closed-loop cell puts the paper's success rate beside the simulated one (successes /
 episodes and the 95% Wilson interval) and says whether the paper's number lies inside the
@@ -15,7 +16,6 @@ are listed, not guessed.
 from __future__ import annotations
 
 import argparse
-import logging
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -28,10 +28,14 @@ from . import paper_numbers
 from .document import Report
 from .results import WINTER, Cell, closed_loop_cells, offline_validation_curves
 
-log = logging.getLogger(__name__)
 SENSOR_LABELS = {"s": "θ1, θ2, p_d", "s_pt": "+ p_t", "s_pt_sprime": "+ p_t, s′"}
-CONTROLLER_LABELS = {"nnet": "NNet", "rf": "RF", "nnetv2": "NNetV2", "annet": "ANNet"}
-CONTROLLER_LABELS["dannet"] = "DANNet"
+CONTROLLER_LABELS = {
+    "nnet": "NNet",
+    "rf": "RF",
+    "nnetv2": "NNetV2",
+    "annet": "ANNet",
+    "dannet": "DANNet",
+}
 DATASET_LABELS = {"d_i": "D_I", "d_ii": "D_II"}
 
 Key = tuple[str, str, str, str]  # controller, sensors, dataset, test
@@ -53,6 +57,14 @@ def _label(key: Key) -> str:
     return f"{_controller_label(controller, sensors)} {dataset} → {test}"
 
 
+def cell_verdict(paper_percent: float, cell: Cell) -> str:
+    """``agrees`` if the paper's rate lies in the simulated 95% interval, else which way."""
+    low, high = cell.interval
+    if low <= paper_percent / 100 <= high:
+        return "agrees"
+    return "sim higher" if cell.rate > paper_percent / 100 else "sim lower"
+
+
 def comparison_rows(paper: dict[Key, int], cells: dict[Key, Cell]) -> list[list[str]]:
     """One row per paper cell: paper, simulated rate, n, interval, verdict."""
     rows = []
@@ -70,19 +82,13 @@ def comparison_rows(paper: dict[Key, int], cells: dict[Key, Cell]) -> list[list[
             rows.append(row + ["not run", "", "", "", ""])
             continue
         low, high = cell.interval
-        inside = low <= paper_percent / 100 <= high
-        verdict = (
-            "agrees"
-            if inside
-            else ("sim higher" if cell.rate > paper_percent / 100 else "sim lower")
-        )
         rows.append(
             row
             + [
                 _percent(cell.rate),
                 f"{cell.successes}/{cell.episodes}",
                 f"{_percent(low)}–{_percent(high)}",
-                verdict,
+                cell_verdict(paper_percent, cell),
                 _failures(cell),
             ]
         )
@@ -141,10 +147,6 @@ def plot_comparison(paper: dict[Key, int], cells: dict[Key, Cell], path: Path, t
 # --- the paper's claims, each checked on the simulated cells -------------------------------
 
 
-def _rate(cells, key) -> float | None:
-    return cells[key].rate if key in cells else None
-
-
 def _better(cells: dict[Key, Cell], a: Key, b: Key) -> tuple[bool | None, str]:
     """Is a's success rate above b's? Evidence names both and whether intervals overlap."""
     if a not in cells or b not in cells:
@@ -161,12 +163,14 @@ def _better(cells: dict[Key, Cell], a: Key, b: Key) -> tuple[bool | None, str]:
 Claim = tuple[str, Callable[[dict[Key, Cell]], list[tuple[bool | None, str]]]]
 
 
-def _all_below(keys: list[Key], limit: float) -> Callable:
+def _each(keys: list[Key], passes: Callable[[float], bool]) -> Callable:
+    """A claim about every cell of ``keys`` on its own: ``passes(success rate)``."""
+
     def check(cells):
         return [
             (None, "not run")
             if k not in cells
-            else (cells[k].rate < limit, _label(k) + " " + _percent(cells[k].rate))
+            else (passes(cells[k].rate), _label(k) + " " + _percent(cells[k].rate))
             for k in keys
         ]
 
@@ -185,7 +189,7 @@ EXP1_CLAIMS: list[Claim] = [
     (
         "Trained on summer D_II with ⟨θ1, θ2, p_d⟩, no controller reaches 50% in winter "
         "(the paper: NNet 0%, RF 40%, NNetV2 0%).",
-        _all_below([_w(c, "s", "d_ii") for c in ("nnet", "rf", "nnetv2")], 0.5),
+        _each([_w(c, "s", "d_ii") for c in ("nnet", "rf", "nnetv2")], lambda rate: rate < 0.5),
     ),
     (
         "Each controller does worse in winter than in summer (the paper: RF 80% → 40%, NNetV2 "
@@ -214,7 +218,10 @@ EXP2_CLAIMS: list[Claim] = [
     ),
     (
         "NNet fails in winter whatever the data and sensors (the paper: 0% everywhere).",
-        _all_below([_w("nnet", s, d) for s in ("s", "s_pt") for d in ("d_ii", "d_i")], 0.2),
+        _each(
+            [_w("nnet", s, d) for s in ("s", "s_pt") for d in ("d_ii", "d_i")],
+            lambda rate: rate < 0.2,
+        ),
     ),
 ]
 
@@ -229,13 +236,10 @@ EXP3_CLAIMS: list[Claim] = [
     (
         "With p_t and the attention sensors s′, ANNet and DANNet reach at least 80% in winter "
         "on both datasets (the paper: 80-100%).",
-        lambda cells: [
-            (None, "not run")
-            if (k := _w(c, "s_pt_sprime", d)) not in cells
-            else (cells[k].rate >= 0.8, f"{_label(k)} {_percent(cells[k].rate)}")
-            for c in ("annet", "dannet")
-            for d in ("d_i", "d_ii")
-        ],
+        _each(
+            [_w(c, "s_pt_sprime", d) for c in ("annet", "dannet") for d in ("d_i", "d_ii")],
+            lambda rate: rate >= 0.8,
+        ),
     ),
     (
         "DANNet with p_t and s′ is the best controller on both datasets (the paper: 100%, "
@@ -250,25 +254,27 @@ EXP3_CLAIMS: list[Claim] = [
     ),
     (
         "Without p_t, attention does not help on D_II (the paper: all three 0%).",
-        _all_below([_w(c, "s", "d_ii") for c in ("nnetv2", "annet", "dannet")], 0.2),
+        _each([_w(c, "s", "d_ii") for c in ("nnetv2", "annet", "dannet")], lambda rate: rate < 0.2),
     ),
 ]
+
+
+def verdict(results: list[bool | None]) -> str:
+    """A claim checked on several cells (``None``: a cell not run)."""
+    known = [ok for ok in results if ok is not None]
+    if not known:
+        return "not run"
+    if all(known) and len(known) == len(results):
+        return "holds"
+    return "holds in part" if any(known) else "does not hold"
 
 
 def claim_rows(claims: list[Claim], cells: dict[Key, Cell]) -> list[list[str]]:
     rows = []
     for statement, check in claims:
         results = check(cells)
-        known = [ok for ok, _ in results if ok is not None]
-        if not known:
-            verdict = "not run"
-        elif all(known) and len(known) == len(results):
-            verdict = "holds"
-        elif any(known):
-            verdict = "holds in part"
-        else:
-            verdict = "does not hold"
-        rows.append([statement, verdict, "; ".join(evidence for _, evidence in results)])
+        evidence = "; ".join(text for _, text in results)
+        rows.append([statement, verdict([ok for ok, _ in results]), evidence])
     return rows
 
 
@@ -369,11 +375,10 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
         (k, (k[0], k[1], "d_i")) for k in final if k[2] == "d_ii" and (k[0], k[1], "d_i") in final
     ]
     if pairs:
-        lower = [final[b] < final[a] for a, b in pairs]
         claims.append(
             [
                 "All data D_I gives a lower validation loss than D_II.",
-                "holds" if all(lower) else ("holds in part" if any(lower) else "does not hold"),
+                verdict([final[b] < final[a] for a, b in pairs]),
                 "; ".join(f"{a[0]}: D_II {final[a]:.4f}, D_I {final[b]:.4f}" for a, b in pairs),
             ]
         )
@@ -383,11 +388,10 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
         if k[0] in ("annet", "dannet") and ("nnetv2", k[1], k[2]) in final
     ]
     if attention:
-        lower = [final[a] < final[b] for a, b in attention]
         claims.append(
             [
                 "The attention networks reach a lower validation loss than NNetV2.",
-                "holds" if all(lower) else ("holds in part" if any(lower) else "does not hold"),
+                verdict([final[a] < final[b] for a, b in attention]),
                 "; ".join(
                     f"{a[0]} {a[2]} {final[a]:.4f} vs NNetV2 {final[b]:.4f}" for a, b in attention
                 ),
@@ -479,7 +483,7 @@ def at_a_glance(compared: list[tuple[str, dict, dict, list]]) -> Report:
     glance.heading("At a glance")
     rows, modes = [], {}
     for title, paper, cells, claims in compared:
-        verdicts = [row[8] for row in comparison_rows(paper, cells) if row[5] != "not run"]
+        verdicts = [cell_verdict(paper[key], cells[key]) for key in paper if key in cells]
         held = [row[1] for row in claim_rows(claims, cells)]
         rows.append(
             [
