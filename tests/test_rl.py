@@ -19,6 +19,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from pilerl.config import register_configs
 from pilerl.policies import actor_policy, load_actor, make_actor, save_actor
 from pilerl.rl import (
+    CollectionConfig,
     CurriculumConfig,
     CurriculumStage,
     EvaluationConfig,
@@ -188,10 +189,11 @@ def test_training_env_reports_success_and_reward_parts():
 
 
 def test_pooled_success_has_a_wilson_interval():
+    measured = {"time_to_finish_s": 9.0, "max_wheel_slip_m_s": 0.1, "spilled_kg": 0.0}
     records = [
-        {"condition": "winter_a", "success": True, "fill_fraction": 0.6},
-        {"condition": "winter_b", "success": False, "fill_fraction": 0.4},
-        {"condition": "summer", "success": True, "fill_fraction": 0.9},
+        {"condition": "winter_a", "success": True, "fill_fraction": 0.6, **measured},
+        {"condition": "winter_b", "success": False, "fill_fraction": 0.4, **measured},
+        {"condition": "summer", "success": True, "fill_fraction": 0.9, **measured},
     ]
     pooled = pool_groups(records, {"winter": ["winter_a", "winter_b"], "summer": ["summer"]})
     assert pooled["winter"]["successes"] == 1 and pooled["winter"]["episodes"] == 2
@@ -216,9 +218,9 @@ def test_evaluating_a_rewritten_checkpoint_sees_the_new_weights(cloned, tmp_path
     path = tmp_path / "evaluated.pt"
     kwargs = {"simulator": "pile_loader", "env_kwargs": {}, "episodes": 1, "seed": 0}
     constant_actor(checkpoint, path, [0.0, 0.0, 0.0])  # stands still: nothing scooped
-    still, _ = evaluate_groups(path, {"summer": ["summer"]}, **kwargs)
+    still, *_ = evaluate_groups(path, {"summer": ["summer"]}, **kwargs)
     constant_actor(checkpoint, path, [0.0, 0.0, 2.0])  # full throttle into the pile
-    driving, _ = evaluate_groups(path, {"summer": ["summer"]}, **kwargs)
+    driving, *_ = evaluate_groups(path, {"summer": ["summer"]}, **kwargs)
     assert still["summer"]["fill_mean"] == 0.0
     assert driving["summer"]["fill_mean"] > 0.0
 
@@ -300,6 +302,9 @@ def test_finetune_recipe_td3bc_smoke_run_over_two_curriculum_stages(cloned, tmp_
     assert 0 <= metrics["after_best_winter_success_rate"] <= 1
     assert (tmp_path / "finetune" / "scalars" / "loss_qvalue.csv").exists()
     assert (tmp_path / "done.json").exists()
+    trained = actor_policy(load_actor(tmp_path / "final.pt")).state_dict()
+    cloned_weights = actor_policy(load_actor(checkpoint)).state_dict()
+    assert any(not torch.equal(trained[k], cloned_weights[k]) for k in trained)
 
 
 # ---------------------------------------------------------------- bad input, configs
@@ -325,6 +330,11 @@ def test_bad_configs_fail_before_any_work(cloned, datasets, tmp_path):
     with pytest.raises(FileNotFoundError, match="nowhere.pt"):
         finetune(missing, tmp_path / "run", progress=False)
     assert not (tmp_path / "run").exists()
+
+    uneven = copy.deepcopy(config)  # 64 frames per batch cannot split over 3 Ray collectors
+    uneven.collection = CollectionConfig(backend="ray", workers=3)
+    with pytest.raises(ValueError, match="multiple of collection.workers"):
+        validate_finetune_config(uneven)
 
     bad_mixture = copy.deepcopy(config)
     bad_mixture.curriculum.stages[0].conditions = {"summer": -1.0}

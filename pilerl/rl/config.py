@@ -235,6 +235,17 @@ class FinetuneConfig:
     output_dir: str = MISSING
 
 
+def uses_demos(config: FinetuneConfig) -> bool:
+    """Whether the learner reads the demonstrations (PPO's ``bc_demo`` regulariser, TD3+BC
+    with ``demo_fraction > 0``); only then are they loaded."""
+    algorithm = config.algorithm
+    if config.demos is None:
+        return False
+    if isinstance(algorithm, PPOConfig):
+        return algorithm.regularizer == "bc_demo"
+    return algorithm.demo_fraction > 0
+
+
 def _positive(where: str, value: float) -> None:
     if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
         raise ValueError(f"{where}: must be a finite number > 0, got {value!r}")
@@ -295,10 +306,8 @@ def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = Tru
                     "TD3+BC with demo_fraction > 0 needs every weight = 1.0, got "
                     f"{dict(config.reward_weights)}"
                 )
-    for name in ("gamma",):
-        value = getattr(algorithm, name)
-        if not 0 < value <= 1:
-            raise ValueError(f"algorithm.{name}: must lie in (0, 1], got {value}")
+    if not 0 < algorithm.gamma <= 1:
+        raise ValueError(f"algorithm.gamma: must lie in (0, 1], got {algorithm.gamma}")
     if not config.curriculum.stages:
         raise ValueError("curriculum.stages: need at least one stage")
     for i, stage in enumerate(config.curriculum.stages):
@@ -324,6 +333,15 @@ def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = Tru
         )
     _positive("collection.workers", config.collection.workers)
     _positive("collection.envs_per_worker", config.collection.envs_per_worker)
+    if (
+        config.collection.backend == "ray"
+        and algorithm.frames_per_batch % config.collection.workers
+    ):
+        raise ValueError(
+            f"algorithm.frames_per_batch ({algorithm.frames_per_batch}) must be a multiple of "
+            f"collection.workers ({config.collection.workers}) for the ray backend (each "
+            "remote collector fills an equal share of a batch)"
+        )
     evaluation = config.evaluation
     if not evaluation.groups or not all(evaluation.groups.values()):
         raise ValueError(f"evaluation.groups: each group needs conditions, got {evaluation.groups}")

@@ -11,39 +11,38 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-import numpy as np
-import torch
-from tensordict import TensorDict
-
-from pilerl.evaluation import run_episode, write_mp4
-from pilerl.evaluation.evaluator import ActorController, EvaluationPlan, clear_caches, evaluate
-from pilerl.evaluation.metrics import wilson_interval
+from pilerl.evaluation.evaluator import (
+    ActorController,
+    EvaluationPlan,
+    evaluate,
+    summarize_rows,
+)
 from pilerl.figures import plt, save_figure
-from pilerl.policies import SensorPolicy
-from pilerl.sim import make_gym_env
 
-VIDEO_SIZE = (240, 320)  # (height, width) [px]
+# never NaN, so results.json stays strict JSON (time to fill is NaN without a success)
+POOLED_FIELDS = (
+    "successes",
+    "episodes",
+    "success_rate",
+    "success_low",
+    "success_high",
+    "fill_mean",
+    "failure_modes",
+)
 
 
 def pool_groups(
     records: Sequence[dict], groups: Mapping[str, Sequence[str]], *, confidence: float = 0.95
 ) -> dict[str, dict]:
-    """Per group: successes, episodes, success rate, Wilson interval, mean fill."""
+    """Per group, from the evaluator's summary of the episodes in the group's conditions:
+    ``POOLED_FIELDS`` (success with its Wilson interval, mean fill, failure modes)."""
     pooled = {}
     for group, conditions in groups.items():
         rows = [r for r in records if r["condition"] in set(conditions)]
         if not rows:
             raise ValueError(f"evaluation group {group!r}: no episodes in {list(conditions)}")
-        successes = sum(bool(r["success"]) for r in rows)
-        low, high = wilson_interval(successes, len(rows), confidence=confidence)
-        pooled[group] = {
-            "successes": successes,
-            "episodes": len(rows),
-            "success_rate": successes / len(rows),
-            "success_low": low,
-            "success_high": high,
-            "fill_mean": float(np.mean([r["fill_fraction"] for r in rows])),
-        }
+        summary = summarize_rows(rows, confidence)
+        pooled[group] = {name: summary[name] for name in POOLED_FIELDS}
     return pooled
 
 
@@ -57,13 +56,12 @@ def evaluate_groups(
     seed: int,
     workers: int = 1,
     confidence: float = 0.95,
-) -> tuple[dict[str, dict], list[dict]]:
-    """(pooled success per group, one record per episode) of a saved actor.
+) -> tuple[dict[str, dict], list[dict], EvaluationPlan]:
+    """(pooled success per group, one record per episode, the plan) of a saved actor.
 
-    The evaluator keeps loaded actors by checkpoint path; fine-tuning rewrites the same
-    files (``evaluated.pt``, ``best.pt``), so its caches are cleared first.
+    Fine-tuning rewrites the same files (``evaluated.pt``, ``best.pt``); the evaluator
+    reloads a checkpoint whenever its file changed.
     """
-    clear_caches()
     conditions = tuple(dict.fromkeys(c for members in groups.values() for c in members))
     plan = EvaluationPlan(
         simulator=simulator,
@@ -73,41 +71,16 @@ def evaluate_groups(
         seed=seed,
     )
     records = evaluate(ActorController(str(checkpoint)), plan, workers=workers, progress=False)
-    return pool_groups(records, groups, confidence=confidence), records
-
-
-def record_video(
-    policy: SensorPolicy,
-    path: str | Path,
-    *,
-    simulator: str,
-    env_kwargs: Mapping[str, object],
-    condition: str,
-    seed: int,
-) -> Path:
-    """Render one deterministic episode of ``policy`` in ``condition`` to an mp4."""
-    env = make_gym_env(
-        simulator,
-        **dict(env_kwargs),
-        condition=condition,
-        render_mode="rgb_array",
-        render_size=VIDEO_SIZE,
-    )
-
-    def act(obs: dict) -> np.ndarray:
-        with torch.no_grad():
-            readings = TensorDict({k: torch.as_tensor(v) for k, v in obs.items()}, [])
-            return policy(*[readings[k] for k in policy.in_keys])[0].numpy()
-
-    try:
-        episode = run_episode(env, act, seed=seed, render=True)
-    finally:
-        env.close()
-    return write_mp4(episode.frames, path, fps=episode.frame_hz)
+    return pool_groups(records, groups, confidence=confidence), records, plan
 
 
 def plot_success_curve(
-    evaluations: Sequence[dict], path: str | Path, *, title: str, stage_frames: Sequence[int] = ()
+    evaluations: Sequence[dict],
+    path: str | Path,
+    *,
+    title: str,
+    stage_frames: Sequence[int] = (),
+    confidence: float = 0.95,
 ) -> Path:
     """Success rate vs frames per group, with the Wilson interval as a band."""
     fig, ax = plt.subplots(figsize=(6.4, 3.8))
@@ -122,7 +95,7 @@ def plot_success_curve(
     for boundary in stage_frames:
         ax.axvline(boundary, color="grey", linestyle=":", linewidth=1)
     ax.set_xlabel("environment frames (control steps)")
-    ax.set_ylabel("success rate (95% Wilson band)")
+    ax.set_ylabel(f"success rate ({100 * confidence:g}% Wilson band)")
     ax.set_ylim(-0.02, 1.02)
     ax.set_title(title)
     ax.grid(alpha=0.3)

@@ -28,7 +28,8 @@ Files in ``run_dir``:
 
 Resuming restores weights, optimisers, frames, the curriculum position and the history;
 the simulators restart with a seed derived from the number of batches, so a resumed run
-continues the same training, not a bit-identical replay of an uninterrupted one.
+continues the same training, not a bit-identical replay of an uninterrupted one. TD3+BC's
+replay buffer is not in the checkpoint: a resumed TD3+BC run refills it from new frames.
 """
 
 from __future__ import annotations
@@ -45,14 +46,16 @@ from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from tqdm import tqdm
 
 from pilerl.data import EpisodeStore
+from pilerl.evaluation.closed_loop import render_rollout
+from pilerl.evaluation.evaluator import ActorController, EvaluationPlan
 from pilerl.io import write_text_atomic
 from pilerl.loggers import make_logger
 from pilerl.policies import CheckpointError, actor_policy, load_actor, save_actor
 
 from .collection import make_collector, sync_weights
-from .config import FinetuneConfig, PPOConfig, validate_finetune_config
+from .config import FinetuneConfig, PPOConfig, uses_demos, validate_finetune_config
 from .envs import TrainingEnvFactory
-from .evaluation import evaluate_groups, plot_success_curve, pool_groups, record_video
+from .evaluation import evaluate_groups, plot_success_curve, pool_groups
 from .ppo import PPOLearner
 from .td3bc import TD3BCLearner
 
@@ -63,6 +66,7 @@ BEST_ACTOR = "best.pt"
 FINAL_ACTOR = "final.pt"
 EVAL_ACTOR = "evaluated.pt"  # scratch file the evaluator loads
 RESULTS_FILE = "results.json"
+VIDEO_SIZE = (240, 320)  # (height, width) of evaluation videos [px]
 
 
 def load_cloned_actor(checkpoint: str | Path):
@@ -85,7 +89,8 @@ def make_learner(config: FinetuneConfig, actor, demos: TensorDictBase | None):
     """``PPOLearner`` or ``TD3BCLearner`` for ``config.algorithm``."""
     if isinstance(config.algorithm, PPOConfig):
         return PPOLearner(actor, config.algorithm, demos=demos, seed=config.seed)
-    return TD3BCLearner(actor, config.algorithm, demos=demos, seed=config.seed)
+    # replay sampling draws from torch's global generator, seeded with config.seed by the run
+    return TD3BCLearner(actor, config.algorithm, demos=demos)
 
 
 def _run_identity(config: FinetuneConfig) -> dict:
@@ -125,7 +130,7 @@ class _Run:
         self.actor = load_cloned_actor(config.checkpoint)
         self.policy = actor_policy(self.actor)
         torch.manual_seed(config.seed)
-        demos = EpisodeStore.open(config.demos).to_tensordict() if config.demos else None
+        demos = EpisodeStore.open(config.demos).to_tensordict() if uses_demos(config) else None
         self.learner = make_learner(config, self.actor, demos)
         self.state: dict = {
             "identity": _run_identity(config),
@@ -170,11 +175,13 @@ class _Run:
         self.state["last_checkpoint_frames"] = self.state["frames"]
 
     # ------------------------------------------------------------------ evaluation
-    def _evaluate(self, checkpoint: Path | str, *, episodes: int, seed: int) -> tuple[dict, dict]:
-        """(success per group, success per condition) of a saved actor."""
+    def _evaluate(
+        self, checkpoint: Path | str, *, episodes: int, seed: int
+    ) -> tuple[dict, dict, list[dict], EvaluationPlan]:
+        """(success per group, success per condition, episode records, plan) of an actor."""
         evaluation = self.config.evaluation
         started = time.perf_counter()
-        pooled, records = evaluate_groups(
+        pooled, records, plan = evaluate_groups(
             checkpoint,
             evaluation.groups,
             simulator=self.config.env.simulator,
@@ -189,12 +196,12 @@ class _Run:
         per_condition = pool_groups(
             records, {c: [c] for c in conditions}, confidence=evaluation.confidence
         )
-        return pooled, per_condition
+        return pooled, per_condition, records, plan
 
     def evaluate_before(self) -> None:
         if self.state["before"] is None:
             evaluation = self.config.evaluation
-            self.state["before"], self.state["before_conditions"] = self._evaluate(
+            self.state["before"], self.state["before_conditions"], *_ = self._evaluate(
                 self.config.checkpoint,
                 episodes=evaluation.final_episodes,
                 seed=evaluation.final_seed,
@@ -205,7 +212,9 @@ class _Run:
         """Periodic evaluation of the current actor; keeps ``best.pt``."""
         evaluation = self.config.evaluation
         scratch = save_actor(self.run_dir / EVAL_ACTOR, self.policy)
-        groups, _ = self._evaluate(scratch, episodes=evaluation.episodes, seed=evaluation.seed)
+        groups, _, records, plan = self._evaluate(
+            scratch, episodes=evaluation.episodes, seed=evaluation.seed
+        )
         frames = self.state["frames"]
         self.state["evaluations"].append({"frames": frames, "groups": groups})
         self.state["last_eval_frames"] = frames
@@ -216,21 +225,24 @@ class _Run:
         for group, result in groups.items():
             self._log(f"eval_{group}_success_rate", result["success_rate"])
         if evaluation.video:
-            self._record_videos(frames)
+            self._record_videos(frames, scratch, records, plan)
         self._write_curve()
         log.info("frames %d: %s", frames, _rates(groups))
 
-    def _record_videos(self, frames: int) -> None:
+    def _record_videos(
+        self, frames: int, checkpoint: Path, records: list[dict], plan: EvaluationPlan
+    ) -> None:
+        """Episode 0 of each group's filmed condition, as just evaluated, to an mp4."""
         evaluation = self.config.evaluation
         for group, conditions in evaluation.groups.items():
             condition = evaluation.video_conditions.get(group, conditions[0])
-            record_video(
-                self.policy,
+            record = next(r for r in records if r["condition"] == condition)
+            render_rollout(
+                ActorController(str(checkpoint)),
+                plan,
+                record,
                 self.run_dir / "videos" / f"{frames:09d}_{group}_{condition}.mp4",
-                simulator=self.config.env.simulator,
-                env_kwargs=self.env_kwargs,
-                condition=condition,
-                seed=evaluation.seed * 100_000,
+                render_size=VIDEO_SIZE,
             )
 
     def _write_curve(self) -> None:
@@ -243,6 +255,7 @@ class _Run:
             self.run_dir / "success_curve.png",
             title=f"{self.policy.config.controller} + {self.config.algorithm.name}",
             stage_frames=boundaries,
+            confidence=self.config.evaluation.confidence,
         )
         write_text_atomic(
             self.run_dir / "evaluations.json", json.dumps(self.state["evaluations"], indent=1)
@@ -338,11 +351,11 @@ class _Run:
     def results(self, finished: bool) -> dict:
         evaluation = self.config.evaluation
         final = save_actor(self.run_dir / FINAL_ACTOR, self.policy)
-        after_final, final_conditions = self._evaluate(
+        after_final, final_conditions, *_ = self._evaluate(
             final, episodes=evaluation.final_episodes, seed=evaluation.final_seed
         )
         if evaluation.every_frames:
-            after_best, best_conditions = self._evaluate(
+            after_best, best_conditions, *_ = self._evaluate(
                 self.run_dir / BEST_ACTOR,
                 episodes=evaluation.final_episodes,
                 seed=evaluation.final_seed,

@@ -20,6 +20,8 @@ from tensordict import TensorDictBase
 from pilerl.data import make_replay_buffer
 from pilerl.policies import ACTION_KEY, SensorPolicy
 
+from .config import REGULARIZERS
+
 
 def _action(policy: SensorPolicy, data: TensorDictBase) -> torch.Tensor:
     return policy(*[data[k] for k in policy.in_keys])[0]
@@ -72,4 +74,4 @@ def make_regularizer(
         return FrozenActorRegularizer(policy)
     if name == "none":
         return None
-    raise ValueError(f"unknown regularizer {name!r}; known: ['bc_demo', 'frozen_actor', 'none']")
+    raise ValueError(f"unknown regularizer {name!r}; known: {list(REGULARIZERS)}")

@@ -32,7 +32,6 @@ class TD3BCLearner:
         actor: the cloned deterministic actor (``load_actor``); trained in place.
         settings: TD3+BC hyper-parameters.
         demos: demonstration transitions (needed when ``demo_fraction > 0``).
-        seed: seeds the replay sampling (through torch's global generator).
     """
 
     def __init__(
@@ -41,7 +40,6 @@ class TD3BCLearner:
         settings: TD3BCConfig,
         *,
         demos: TensorDictBase | None = None,
-        seed: int = 0,
     ) -> None:
         self.settings = settings
         self.policy = actor_policy(actor).eval()
@@ -91,7 +89,6 @@ class TD3BCLearner:
                 raise ValueError("demos: some rewards are NaN (imported logs): use demo_fraction 0")
             self.demo_replay = make_replay_buffer(demo_data, batch_size=self.demo_batch)
         self.updates = 0
-        torch.manual_seed(seed)
 
     @property
     def collection_policy(self) -> TensorDictModule:
