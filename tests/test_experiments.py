@@ -211,7 +211,7 @@ def test_train_bc_tests_its_controller_in_closed_loop_and_a_report_builds(datase
     assert "| RF | θ1, θ2, p_d | D_I | winter | " not in markdown.read_text()  # not a paper cell
     cells, finished, _ = closed_loop_cells(tmp_path / "sweep")
     assert cells[("rf", "s", "d_i", "winter")].episodes == 1
-    # failures are classified again from episodes.csv: as many as the failed episodes
+    # every failed episode has a failure mode
     for test in ("summer", "winter"):
         cell = cells[("rf", "s", "d_i", test)]
         assert sum(cell.failure_modes.values()) == cell.episodes - cell.successes

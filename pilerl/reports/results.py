@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from pilerl.evaluation.evaluator import FAILURE_MODES, failure_mode
 from pilerl.evaluation.metrics import wilson_interval
 
 SUMMER, WINTER = "summer", "winter"
@@ -118,40 +117,10 @@ def closed_loop_cells(sweep_dir: str | Path) -> tuple[dict[tuple, Cell], list[Jo
             counts[key][0] += int(row["successes"])
             counts[key][1] += int(row["episodes"])
             counts[key][2] += 1
-            for mode, n in failure_counts(job_dir, test, row).items():
+            for mode, n in row.get("failure_modes", {}).items():
                 modes[key][mode] = modes[key].get(mode, 0) + int(n)
     cells = {key: Cell(s, n, seeds, modes[key]) for key, (s, n, seeds) in counts.items()}
     return cells, finished, unfinished
-
-
-def failure_counts(job_dir: Path, test: str, row: dict) -> dict[str, int]:
-    """Failed episodes by mode for one test of a job.
-
-    Classified again from ``evaluation/episodes.csv`` when it has the measurements (so a
-    refined classification applies to finished runs too), else the summary's counts.
-    """
-    path = job_dir / "evaluation" / "episodes.csv"
-    if not path.exists():
-        return dict(row.get("failure_modes", {}))
-    with path.open() as file:
-        episodes = list(csv.DictReader(file))
-    if not episodes or "first_lift_s" not in episodes[0]:
-        return dict(row.get("failure_modes", {}))
-    wanted = (lambda c: c.startswith("winter_")) if test == WINTER else (lambda c: c == test)
-    counts = dict.fromkeys(FAILURE_MODES, 0)
-    for e in episodes:
-        if not wanted(e["condition"]):
-            continue
-        mode = failure_mode(
-            success=e["success"] == "True",
-            tipped=e.get("tipped") == "True",
-            finished=e["scoop_finished"] == "True",
-            first_lift_s=float(e["first_lift_s"]),
-            penetration_s=float(e["penetration_s"]),
-        )
-        if mode != "success":
-            counts[mode] += 1
-    return counts
 
 
 @dataclass(frozen=True)
