@@ -13,8 +13,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import BuildDatasetConfig, register_configs
 from pilerl.data import EpisodeStore, build_dataset
+from pilerl.runs import begin_run, finish_run
 from pilerl.runtime import limit_threads
-from pilerl.sweeps import mark_done
 
 log = logging.getLogger(__name__)
 register_configs()
@@ -25,6 +25,11 @@ def main(cfg: DictConfig) -> None:
     limit_threads()
     config: BuildDatasetConfig = OmegaConf.to_object(cfg)
     source = EpisodeStore.open(config.source)
+    run_dir = HydraConfig.get().runtime.output_dir
+    settings = OmegaConf.to_container(cfg, resolve=True)
+    if begin_run(run_dir, settings, inputs={"source": config.source}):
+        log.info("%s already finished: skipping (same settings)", run_dir)
+        return
     rule = config.dataset
     dataset = build_dataset(
         source,
@@ -34,10 +39,7 @@ def main(cfg: DictConfig) -> None:
         description=f"{rule.name} from {config.source}",
     )
     log.info("%s: %d episodes, %d samples", config.out_dir, len(dataset), dataset.n_samples)
-    mark_done(
-        HydraConfig.get().runtime.output_dir,
-        {"episodes": len(dataset), "samples": dataset.n_samples},
-    )
+    finish_run(run_dir, {"episodes": len(dataset), "samples": dataset.n_samples})
 
 
 if __name__ == "__main__":

@@ -5,7 +5,10 @@
 
 Writes to the run directory: ``episodes.csv``, ``summary.json`` (success rate with 95%
 Wilson interval per condition and pooled winter), ``success.png``, ``fill.png`` and
-``videos/*.mp4``. A finished run directory is skipped when run again.
+``videos/*.mp4`` (after the results; ``evaluation.videos=auto`` renders when this machine
+can). ``checkpoint=`` takes a checkpoint file or a run directory holding ``best.pt``. A
+finished run directory is skipped when run again with the same settings and checkpoint,
+and refused when they differ (``run.json``).
 """
 
 from __future__ import annotations
@@ -20,8 +23,9 @@ from pilerl.config import EvaluateConfig, register_configs
 from pilerl.evaluation.closed_loop import run_closed_loop
 from pilerl.evaluation.evaluator import ActorController, ScriptedController, success_metrics
 from pilerl.policies import load_actor
+from pilerl.rendering import resolve_videos
+from pilerl.runs import begin_run, finish_run, resolve_checkpoint
 from pilerl.runtime import limit_threads
-from pilerl.sweeps import is_done, mark_done
 
 log = logging.getLogger(__name__)
 register_configs()
@@ -33,17 +37,19 @@ def main(cfg: DictConfig) -> float:
     limit_threads()
     config: EvaluateConfig = OmegaConf.to_object(cfg)
     out_dir = Path(config.output_dir)
-    if is_done(out_dir):
-        log.info("%s already finished: skipping (delete done.json to run again)", out_dir)
-        return float("nan")
-
+    checkpoint = resolve_checkpoint(config.checkpoint) if config.checkpoint else None
+    videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
     # --- the controller: a checkpoint (loaded once here, so a bad file fails now) or scripted
-    if config.checkpoint is None:
+    if checkpoint is None:
         controller = ScriptedController(config.operator, name=config.name or "scripted")
     else:
-        load_actor(config.checkpoint)
-        name = config.name or Path(config.checkpoint).resolve().parent.name
-        controller = ActorController(config.checkpoint, name=name)
+        load_actor(checkpoint)
+        name = config.name or checkpoint.resolve().parent.name
+        controller = ActorController(str(checkpoint), name=name)
+    settings = OmegaConf.to_container(cfg, resolve=True)
+    if begin_run(out_dir, settings, inputs={"checkpoint": checkpoint}):
+        log.info("%s already finished: skipping (same settings)", out_dir)
+        return float("nan")
 
     # --- episodes, summary, plots, videos
     summary = run_closed_loop(
@@ -51,7 +57,7 @@ def main(cfg: DictConfig) -> float:
         config.evaluation.plan(config.env),
         out_dir,
         workers=config.evaluation.workers,
-        videos=config.evaluation.videos,
+        videos=videos,
         video_conditions=config.evaluation.video_conditions,
         render_size=(config.evaluation.render_height, config.evaluation.render_width),
     )
@@ -59,10 +65,7 @@ def main(cfg: DictConfig) -> float:
     success_rate = sum(r["successes"] for r in per_condition) / sum(
         r["episodes"] for r in per_condition
     )
-    mark_done(
-        out_dir,
-        success_metrics(summary) | {"success_rate": success_rate},
-    )
+    finish_run(out_dir, success_metrics(summary) | {"success_rate": success_rate})
     return success_rate
 
 

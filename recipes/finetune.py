@@ -1,14 +1,15 @@
 """RL fine-tuning of a cloned controller in the simulator (PPO or TD3+BC).
 
-    python recipes/finetune.py checkpoint=data/checkpoints/dannet_d_ii/best.pt
-    python recipes/finetune.py algorithm=td3bc curriculum=summer_to_winter
-    python recipes/finetune.py algorithm.regularizer=bc_demo time_budget_minutes=3
+    python recipes/finetune.py checkpoint=outputs/bc/dannet            # a train_bc run dir
+    python recipes/finetune.py checkpoint=outputs/bc/dannet/best.pt algorithm=td3bc \
+        demos=data/datasets/d_ii_summer curriculum=summer_to_winter
 
 Writes to the run directory: ``best.pt`` / ``final.pt`` (actors for ``load_actor``),
 ``last.ckpt`` (resumable), ``success_curve.png``, ``evaluations.json``, ``results.json``
 (before / after with Wilson intervals), ``metrics.json`` (the same, flat) and the TorchRL
 CSV log. Running again in the same
-directory resumes; a finished run (``done.json``) is skipped.
+directory resumes (also with a larger ``total_frames`` or ``time_budget_minutes``); a
+finished run is skipped; other settings or another checkpoint are refused (``run.json``).
 """
 
 from __future__ import annotations
@@ -19,14 +20,18 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import register_configs
-from pilerl.rl import FinetuneConfig, finetune, register_rl_configs
+from pilerl.rendering import resolve_videos
+from pilerl.rl import FinetuneConfig, finetune, register_rl_configs, validate_finetune_config
+from pilerl.rl.config import uses_demos
 from pilerl.rl.finetuning import flat_metrics
+from pilerl.runs import begin_run, finish_run, resolve_checkpoint
 from pilerl.runtime import limit_threads
-from pilerl.sweeps import is_done, mark_done
 
 log = logging.getLogger(__name__)
 register_configs()
 register_rl_configs()
+# budgets that may be raised to continue a finished run from its last.ckpt
+GROWABLE = ("total_frames", "time_budget_minutes")
 
 
 @hydra.main(config_path="../conf", config_name="finetune", version_base="1.3")
@@ -34,12 +39,20 @@ def main(cfg: DictConfig) -> float:
     """Returns the winter-or-first group's success rate after fine-tuning (best.pt)."""
     limit_threads()
     config: FinetuneConfig = OmegaConf.to_object(cfg)
+    config.checkpoint = str(resolve_checkpoint(config.checkpoint))
+    config.evaluation.video = resolve_videos(config.evaluation.video, where="evaluation.video")
     run_dir = config.output_dir
-    if is_done(run_dir):
-        log.info("%s already finished: skipping (delete done.json to run again)", run_dir)
+    validate_finetune_config(config)  # bad settings fail before any work
+    inputs = {
+        "checkpoint": config.checkpoint,
+        "demos": config.demos if uses_demos(config) else None,
+    }
+    settings = OmegaConf.to_container(cfg, resolve=True)
+    if begin_run(run_dir, settings, inputs=inputs, growable=GROWABLE):
+        log.info("%s already finished: skipping (same settings)", run_dir)
         return float("nan")
     results = finetune(config, run_dir)
-    mark_done(run_dir, flat_metrics(results))
+    finish_run(run_dir, flat_metrics(results))
     after = results["after_best"]
     return float(after.get("winter", next(iter(after.values())))["success_rate"])
 

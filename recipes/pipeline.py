@@ -9,7 +9,9 @@ Everything goes under the run directory (``outputs/pipeline/<time>/``): ``demos/
 ``evaluation/finetuned`` (episodes, success and fill plots, videos), ``finetune/``
 (``best.pt``, success-vs-frames curve), ``figures/`` and ``report.md`` / ``report.html``.
 Each stage skips what an interrupted run already finished, so running the same command
-with ``hydra.run.dir=<that run>`` resumes it.
+with ``hydra.run.dir=<that run>`` resumes it (``run.json`` records the settings; another
+config in the same directory is refused). ``evaluation.videos=auto`` renders when this
+machine can, and otherwise warns once and writes the report without videos.
 """
 
 from __future__ import annotations
@@ -29,8 +31,10 @@ from pilerl.evaluation import ActorController, run_closed_loop
 from pilerl.evaluation.evaluator import build_envs, success_metrics
 from pilerl.loggers import make_logger
 from pilerl.policies import NEURAL_CONTROLLERS, controller_inputs, make_actor
+from pilerl.rendering import resolve_videos
 from pilerl.reports.pipeline import write_pipeline_report
 from pilerl.rl import finetune, validate_finetune_config
+from pilerl.runs import begin_run, finish_run
 from pilerl.runtime import limit_threads
 from pilerl.sim import make_gym_env
 from pilerl.sweeps import is_done, mark_done
@@ -55,7 +59,11 @@ def main(cfg: DictConfig) -> None:
     validate_finetune_config(rl_config, inputs_exist=False)  # bad RL settings fail now
     plan = config.evaluation.plan(config.env)
     build_envs(plan)  # a bad condition or env setting fails before any work
+    videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
     bc_dir = Path(rl_config.checkpoint).parent
+    if begin_run(out, OmegaConf.to_container(cfg, resolve=True)):
+        log.info("%s already finished: skipping (same settings)", out)
+        return
 
     # --- 1. demonstrations: summer (training) and winter_c (validation, figures)
     summer = record(config, "summer", "drive_pressure", config.demos.episodes, out / "demos")
@@ -114,7 +122,7 @@ def main(cfg: DictConfig) -> None:
         plan,
         out / "evaluation" / "finetuned",
         workers=config.evaluation.workers,
-        videos=config.evaluation.videos,
+        videos=videos,
         video_conditions=config.evaluation.video_conditions,
         render_size=(config.evaluation.render_height, config.evaluation.render_width),
     )
@@ -124,7 +132,7 @@ def main(cfg: DictConfig) -> None:
         config, out, summer=summer, winter=winter, dataset=dataset, before=cloned, after=finetuned
     )
     log.info("report: %s", report)
-    mark_done(
+    finish_run(
         out,
         success_metrics(cloned, "cloned_") | success_metrics(finetuned, "finetuned_"),
     )

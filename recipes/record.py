@@ -3,7 +3,9 @@
     python recipes/record.py                       # 72 summer demonstrations at 500 Hz
     python recipes/record.py n_episodes=4 record_hz=100 out_dir=/tmp/demos
 
-An existing ``out_dir`` is resumed: episodes already recorded are kept and skipped.
+An existing ``out_dir`` is resumed: episodes already recorded are kept and skipped. Its
+``run.json`` records the recording plan; resuming with another plan (condition, rate,
+seed, operator ...) is refused, naming what differs; only ``n_episodes`` may grow.
 """
 
 from __future__ import annotations
@@ -16,9 +18,9 @@ from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import RecordConfig, register_configs
 from pilerl.data import EpisodeStore, RecordingPlan, record_demonstrations
+from pilerl.runs import begin_run, finish_run
 from pilerl.runtime import limit_threads
 from pilerl.sim import make_gym_env
-from pilerl.sweeps import mark_done
 
 log = logging.getLogger(__name__)
 register_configs()
@@ -48,6 +50,9 @@ def main(cfg: DictConfig) -> None:
         exist_ok=True,
     )
     probe.close()
+    plan_settings = OmegaConf.to_container(cfg, resolve=True)
+    plan_settings.pop("out_dir")  # the store itself
+    begin_run(config.out_dir, plan_settings, growable=["n_episodes"])
 
     # --- record (resumes)
     record_demonstrations(store, plan, workers=config.workers)
@@ -59,7 +64,7 @@ def main(cfg: DictConfig) -> None:
         store.n_samples,
         successes,
     )
-    mark_done(
+    finish_run(
         HydraConfig.get().runtime.output_dir,
         {
             "episodes": len(store),

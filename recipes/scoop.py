@@ -3,6 +3,9 @@
     python recipes/scoop.py
     python recipes/scoop.py conditions=[summer,winter_b] env.soil=particles video=false
 
+``video=auto`` (default) renders when this machine can; ``video=true`` refuses before any
+work if it cannot.
+
 Writes to the Hydra run directory: ``scoop_<condition>.mp4``, ``trace_<condition>.csv``,
 ``scoop_signals.png``, ``summary.json`` and ``report.md``.
 """
@@ -18,9 +21,10 @@ from pilerl.config import ScoopConfig, register_configs
 from pilerl.evaluation import plot_scoop, run_episode, write_mp4
 from pilerl.evaluation.scoop_report import summarize, write_scoop_report, write_trace_csv
 from pilerl.operators import ScriptedScoopOperator
+from pilerl.rendering import resolve_videos
+from pilerl.runs import begin_run, finish_run
 from pilerl.runtime import limit_threads
 from pilerl.sim import make_gym_env
-from pilerl.sweeps import is_done, mark_done
 
 log = logging.getLogger(__name__)
 register_configs()
@@ -32,9 +36,7 @@ def main(cfg: DictConfig) -> None:
     config: ScoopConfig = OmegaConf.to_object(cfg)
     style = config.operator
     out_dir = config.output_dir
-    if is_done(out_dir):
-        log.info("%s already finished: skipping (delete done.json to run again)", out_dir)
-        return
+    video = resolve_videos(config.video, where="video")
     episodes, summaries, videos = {}, {}, []
 
     # --- build every env first: a bad condition or parameter fails before any work
@@ -43,19 +45,22 @@ def main(cfg: DictConfig) -> None:
             config.env.simulator,
             **config.env.make_kwargs(
                 condition=condition,
-                render_mode="rgb_array" if config.video else None,
+                render_mode="rgb_array" if video else None,
                 render_size=(config.render_height, config.render_width),
                 camera=config.camera,
             ),
         )
         for condition in config.conditions
     }
+    if begin_run(out_dir, OmegaConf.to_container(cfg, resolve=True)):
+        log.info("%s already finished: skipping (same settings)", out_dir)
+        return
 
     # --- one scripted scoop per condition
     for condition, env in envs.items():
         operator = ScriptedScoopOperator(style, dt=env.unwrapped.dt)
         episode = run_episode(
-            env, operator.act, seed=config.seed, render=config.video, progress=f"scoop {condition}"
+            env, operator.act, seed=config.seed, render=video, progress=f"scoop {condition}"
         )
         env.close()
         episodes[condition] = episode
@@ -64,7 +69,7 @@ def main(cfg: DictConfig) -> None:
 
         # --- artefacts a person can look at
         write_trace_csv(episode, f"{out_dir}/trace_{condition}.csv")
-        if config.video:
+        if video:
             write_mp4(episode.frames, f"{out_dir}/scoop_{condition}.mp4", fps=episode.frame_hz)
             videos.append(f"scoop_{condition}.mp4")
 
@@ -74,7 +79,7 @@ def main(cfg: DictConfig) -> None:
         summaries, out_dir, seed=config.seed, figures=["scoop_signals.png"], videos=videos
     )
     log.info("report: %s", report)
-    mark_done(
+    finish_run(
         out_dir,
         {
             f"{condition}_{key}": float(value)

@@ -8,7 +8,9 @@ Writes to the run directory: ``best.pt`` (actor with the lowest validation loss)
 ``last.pt`` (resumable training state), ``losses.png``, the TorchRL CSV log and
 ``metrics.json``; with ``evaluation.episodes > 0`` the closed-loop test of ``best.pt``
 goes to ``evaluation/`` (see ``recipes/evaluate.py``). Running again in the same
-directory resumes from ``last.pt``.
+directory resumes from ``last.pt`` (or skips a finished run); ``run.json`` records the
+settings and the datasets' fingerprints, and another policy, sensor set, budget or dataset
+is refused with the differing keys named.
 """
 
 from __future__ import annotations
@@ -27,8 +29,10 @@ from pilerl.evaluation.closed_loop import run_closed_loop
 from pilerl.evaluation.evaluator import ActorController, build_envs, success_metrics
 from pilerl.loggers import make_logger
 from pilerl.policies import controller_inputs, get_spec, make_actor
+from pilerl.rendering import resolve_videos
+from pilerl.runs import begin_run, finish_run
 from pilerl.runtime import limit_threads
-from pilerl.sweeps import METRICS_FILE, is_done, mark_done
+from pilerl.sweeps import METRICS_FILE
 from pilerl.training import (
     BCSettings,
     epochs_for_steps,
@@ -49,9 +53,7 @@ def main(cfg: DictConfig) -> float:
     limit_threads()
     config: TrainBCConfig = OmegaConf.to_object(cfg)
     run_dir = Path(config.output_dir)
-    if is_done(run_dir):
-        log.info("%s already finished: skipping (delete done.json to run again)", run_dir)
-        return _objective(json.loads((run_dir / METRICS_FILE).read_text()))
+    videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
     if config.ensemble_seeds > 1 and config.evaluation.episodes > 0:
         raise ValueError(
             "evaluation.episodes: an ensemble (ensemble_seeds > 1) has no one "
@@ -62,6 +64,14 @@ def main(cfg: DictConfig) -> float:
     train_store = EpisodeStore.open(config.train_data)
     if train_store.stats is None:
         raise ValueError(f"{config.train_data}: no statistics; build it with build_dataset.py")
+
+    # --- this run directory: skip when finished, refuse another config or dataset
+    inputs = {"train_data": config.train_data, "validation_data": config.validation_data}
+    rates = sorted({meta.rate_hz for meta in train_store.episodes})
+    settings = OmegaConf.to_container(cfg, resolve=True)
+    if begin_run(run_dir, settings, inputs=inputs, control_hz=rates):
+        log.info("%s already finished: skipping (same settings and data)", run_dir)
+        return _objective(json.loads((run_dir / METRICS_FILE).read_text()))
     train = train_store.to_tensordict()
     validation = (
         EpisodeStore.open(config.validation_data).to_tensordict()
@@ -103,7 +113,7 @@ def main(cfg: DictConfig) -> float:
         )
         write_ensemble_curves(result, run_dir / "ensemble_curves.csv")
         final = result.train_loss if result.validation_loss is None else result.validation_loss
-        mark_done(
+        finish_run(
             run_dir,
             {
                 "seeds": len(seeds),
@@ -137,12 +147,12 @@ def main(cfg: DictConfig) -> float:
             plan,
             run_dir / "evaluation",
             workers=config.evaluation.workers,
-            videos=config.evaluation.videos,
+            videos=videos,
             video_conditions=config.evaluation.video_conditions,
             render_size=(config.evaluation.render_height, config.evaluation.render_width),
         )
         metrics |= success_metrics(summary)
-    mark_done(run_dir, metrics)
+    finish_run(run_dir, metrics)
     return _objective(metrics)
 
 

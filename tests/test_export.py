@@ -64,3 +64,21 @@ def test_command_line(tmp_path, capsys):
     assert "checked with onnxruntime" in capsys.readouterr().out
     assert main([str(tmp_path / "missing.pt"), "--onnx", str(tmp_path / "b.onnx")]) == 2
     assert "no such actor checkpoint" in capsys.readouterr().err
+
+
+def test_onnx_file_is_self_contained_and_reexport_leaves_nothing_beside_it(tmp_path):
+    torch.manual_seed(0)
+    actor = make_actor("dannet", sensors=SENSORS, stats=STATS, attention_sensors=SENSORS + EXTRA)
+    export_dir, copy_dir = tmp_path / "export", tmp_path / "copy"
+    export_dir.mkdir()
+    copy_dir.mkdir()
+    for _ in range(2):  # a re-export replaces the file and adds nothing
+        path, _ = export_onnx(actor, export_dir / "dannet.onnx")
+    assert sorted(p.name for p in export_dir.iterdir()) == ["dannet.onnx"]  # no hidden .data
+    copied = copy_dir / "dannet.onnx"
+    copied.write_bytes(path.read_bytes())  # the .onnx alone, copied elsewhere
+    session = onnxruntime.InferenceSession(str(copied))
+    readings = {k: np.full((1, 1), 1.5, np.float32) for k in actor.in_keys}
+    action = session.run(["action"], readings)[0]
+    expected = actor.module(*[torch.from_numpy(v) for v in readings.values()])[0]
+    np.testing.assert_allclose(action, expected.detach().numpy(), atol=1e-5)

@@ -107,6 +107,13 @@ def test_a_finished_job_is_skipped_when_run_again(tmp_path):
     again = run(*SCOOP, f"hydra.run.dir={tmp_path}")
     assert again.returncode == 0 and "already finished: skipping" in again.stdout + again.stderr
     assert (tmp_path / "report.md").stat().st_mtime_ns == report_time
+    # another config in the same directory: refused, naming the key; Hydra's record kept
+    other = run(*SCOOP, f"hydra.run.dir={tmp_path}", "seed=3")
+    assert other.returncode != 0
+    assert "seed: 0 -> 3" in other.stderr
+    assert "seed: 0" in (tmp_path / ".hydra" / "config.yaml").read_text()
+    assert "seed=3" not in (tmp_path / ".hydra" / "overrides.yaml").read_text()
+    assert (tmp_path / "report.md").stat().st_mtime_ns == report_time
 
 
 def test_multirun_with_the_local_parallel_launcher_then_summary(tmp_path):

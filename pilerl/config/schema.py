@@ -65,7 +65,8 @@ class ScoopConfig:
         operator: scripted operator style (``pilerl.operators.OperatorStyle``).
         conditions: conditions to scoop in, one episode each.
         seed: episode seed (start distance and approach angle follow from it).
-        video: write an mp4 per condition.
+        video: write an mp4 per condition: ``auto`` (when this machine can render, else
+            one warning), ``true`` (refuse before any work if it cannot) or ``false``.
         render_width, render_height: video frame size [px].
         camera: MJCF camera for the video.
     """
@@ -74,7 +75,7 @@ class ScoopConfig:
     operator: OperatorStyle = field(default_factory=OperatorStyle)
     conditions: list[str] = field(default_factory=lambda: ["summer", "winter_c"])
     seed: int = 0
-    video: bool = True
+    video: str = "auto"
     render_width: int = 640
     render_height: int = 360
     camera: str = "side"
@@ -188,7 +189,9 @@ class ClosedLoopConfig:
         episodes: episodes per condition (0 = no closed-loop evaluation).
         seed: base seed; episode i starts from the same pose in every condition.
         workers: episode processes (``None`` = one per core).
-        videos: render the median-fill episode and the first failure of each condition.
+        videos: render the median-fill episode and the first failure of each condition:
+            ``auto`` (when this machine can render, else one warning), ``true`` (refuse
+            before any work if it cannot) or ``false``.
         video_conditions: only these conditions' (``None``: every condition's); offscreen
             rendering runs in software here (~0.05-0.2 s a frame).
         render_width, render_height: video frame size [px].
@@ -200,7 +203,7 @@ class ClosedLoopConfig:
     episodes: int = 10
     seed: int = 1
     workers: int | None = None
-    videos: bool = False
+    videos: str = "false"
     video_conditions: list[str] | None = None
     render_width: int = 640
     render_height: int = 360

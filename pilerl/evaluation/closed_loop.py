@@ -21,13 +21,14 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from pilerl.figures import plt, save_figure
 from pilerl.sim import make_gym_env
 
 from .episode import run_episode
 from .evaluator import EvaluationPlan, evaluate, summarize, write_results
-from .video import write_mp4
+from .video import annotate_frames, write_mp4
 
 log = logging.getLogger(__name__)
 SUCCESS_FILL = 0.5  # the paper: a scoop succeeds when the bucket is at least half full
@@ -62,20 +63,31 @@ def run_closed_loop(
     out_dir = Path(out_dir)
     records = evaluate(controller, plan, workers=workers, progress=progress)
     summary = summarize(records)
+    # --- results first: a person can read them while the videos render
     write_results(records, summary, out_dir)
     plot_success(summary, out_dir / "success.png", title=controller.name)
     plot_fill(records, out_dir / "fill.png", title=controller.name)
+    log_summary(controller.name, summary)
     if videos:
-        for record in chosen_rollouts(records):
-            if video_conditions is not None and record["condition"] not in video_conditions:
-                continue
+        chosen = [
+            record
+            for record in chosen_rollouts(records)
+            if video_conditions is None or record["condition"] in video_conditions
+        ]
+        for record in tqdm(chosen, desc=f"videos {controller.name}", disable=not progress):
             path = out_dir / "videos" / f"{record['condition']}_episode{record['episode']}.mp4"
             render_rollout(controller, plan, record, path, render_size=render_size, camera=camera)
-    for name, row in summary.items():
+        log.info("%d videos in %s", len(chosen), out_dir / "videos")
+    return summary
+
+
+def log_summary(name: str, summary: dict[str, dict]) -> None:
+    """One log line per condition: successes, rate with its 95% interval, mean fill."""
+    for condition, row in summary.items():
         log.info(
             "%s %s: %d/%d successful (%.0f%%, 95%% CI %.0f-%.0f%%), mean fill %.2f",
-            controller.name,
             name,
+            condition,
             row["successes"],
             row["episodes"],
             100 * row["success_rate"],
@@ -83,7 +95,6 @@ def run_closed_loop(
             100 * row["success_high"],
             row["fill_mean"],
         )
-    return summary
 
 
 def chosen_rollouts(records: list[dict]) -> list[dict]:
@@ -120,10 +131,15 @@ def render_rollout(
     operator = controller.build(float(env.unwrapped.dt))
     operator.reset()
     episode = run_episode(env, operator.act, seed=record["seed"], render=True)
+    ranges = {
+        name: (float(np.min(space.low)), float(np.max(space.high)))
+        for name, space in env.observation_space.spaces.items()
+    }
     env.close()
     if abs(float(episode.final_info["fill_fraction"]) - record["fill_fraction"]) > 1e-6:
         log.warning("%s: the re-rendered episode differs from the evaluated one", path)
-    return write_mp4(episode.frames, path, fps=episode.frame_hz)
+    frames = annotate_frames(episode, condition=record["condition"], sensor_ranges=ranges)
+    return write_mp4(frames, path, fps=episode.frame_hz)
 
 
 def plot_success(summary: dict[str, dict], path: str | Path, *, title: str = "") -> Path:

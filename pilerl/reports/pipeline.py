@@ -127,9 +127,14 @@ def write_pipeline_report(
     )
 
     videos = sorted((out / "evaluation" / "finetuned" / "videos").glob("*.mp4"))
+    report.heading("Videos (fine-tuned)")
     if videos:
-        report.heading("Videos (fine-tuned)")
         report.bullets([f"[{v.name}]({v.relative_to(out)})" for v in videos])
+    else:
+        report.paragraph(
+            "No videos: they were switched off, or this machine cannot render offscreen "
+            "(the run's log says which)."
+        )
 
     report.heading("Against the paper")
     key = (policy, sensor_set_name(config.sensors.s, config.sensors.s_prime), "d_ii", "winter")

@@ -1,0 +1,114 @@
+"""Run directories: skip a finished run only under the same settings and inputs."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from pilerl.runs import (
+    RUN_FILE,
+    RunMismatch,
+    begin_run,
+    finish_run,
+    fingerprint_path,
+    read_run_settings,
+    resolve_checkpoint,
+)
+
+SETTINGS = {"policy": {"name": "nnetv2"}, "epochs": 3, "workers": 2, "output_dir": "x"}
+
+
+def test_a_new_run_records_settings_and_provenance(tmp_path):
+    assert begin_run(tmp_path, SETTINGS, control_hz=20.0) is False
+    record = json.loads((tmp_path / RUN_FILE).read_text())
+    assert record["settings"] == {"policy.name": "nnetv2", "epochs": 3}  # workers: not results
+    provenance = record["provenance"]
+    assert provenance["packages"]["torch"].startswith("2.13")
+    assert provenance["control_hz"] == 20.0
+    assert {"commit", "dirty"} <= set(provenance["git"])
+    assert read_run_settings(tmp_path) == SETTINGS
+
+
+def test_finished_run_is_skipped_only_with_the_same_settings(tmp_path):
+    begin_run(tmp_path, SETTINGS)
+    finish_run(tmp_path, {"loss": 0.1})
+    assert begin_run(tmp_path, SETTINGS) is True
+    assert begin_run(tmp_path, {**SETTINGS, "workers": 1}) is True  # how, not what
+    with pytest.raises(RunMismatch, match=r"epochs: 3 -> 6"):
+        begin_run(tmp_path, {**SETTINGS, "epochs": 6})
+    with pytest.raises(RunMismatch, match=r"policy.name: 'nnetv2' -> 'dannet'"):
+        begin_run(tmp_path, {**SETTINGS, "policy": {"name": "dannet"}})
+
+
+def test_an_interrupted_run_refuses_another_config_and_resumes_the_same(tmp_path):
+    begin_run(tmp_path, SETTINGS)  # started, never finished (a kill)
+    with pytest.raises(RunMismatch, match="epochs"):
+        begin_run(tmp_path, {**SETTINGS, "epochs": 4})
+    assert begin_run(tmp_path, SETTINGS) is False  # the same config resumes
+
+
+def test_a_growable_budget_continues_a_finished_run(tmp_path):
+    settings = {"total_frames": 1000, "seed": 0}
+    begin_run(tmp_path, settings, growable=["total_frames"])
+    finish_run(tmp_path, {"frames": 1000})
+    assert begin_run(tmp_path, settings, growable=["total_frames"]) is True
+    assert (
+        begin_run(tmp_path, {**settings, "total_frames": 2000}, growable=["total_frames"]) is False
+    )
+    with pytest.raises(RunMismatch, match="seed"):
+        begin_run(tmp_path, {**settings, "seed": 1}, growable=["total_frames"])
+
+
+def test_changed_input_data_is_refused(tmp_path):
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "index.json").write_text('{"episodes": [1]}')
+    run = tmp_path / "run"
+    begin_run(run, SETTINGS, inputs={"train_data": data})
+    finish_run(run, {"loss": 0.1})
+    assert begin_run(run, SETTINGS, inputs={"train_data": data}) is True
+    (data / "index.json").write_text('{"episodes": [1, 2]}')  # same path, other episodes
+    with pytest.raises(RunMismatch, match=r"input train_data: .* \(content\)"):
+        begin_run(run, SETTINGS, inputs={"train_data": data})
+
+
+def test_a_finished_run_without_a_record_is_not_reused(tmp_path):
+    finish_run(tmp_path, {"loss": 0.1})  # as an older pilerl left it
+    with pytest.raises(RunMismatch, match="did not record its settings"):
+        begin_run(tmp_path, SETTINGS)
+
+
+def test_refusal_restores_the_hydra_files_of_the_recorded_run(tmp_path):
+    hydra = tmp_path / ".hydra"
+    hydra.mkdir()
+    (hydra / "config.yaml").write_text("epochs: 3\n")
+    begin_run(tmp_path, SETTINGS)
+    (hydra / "config.yaml").write_text("epochs: 6\n")  # what Hydra writes before the recipe
+    with pytest.raises(RunMismatch):
+        begin_run(tmp_path, {**SETTINGS, "epochs": 6})
+    assert (hydra / "config.yaml").read_text() == "epochs: 3\n"
+
+
+def test_fingerprints_tell_content_apart(tmp_path):
+    a, b = tmp_path / "a.pt", tmp_path / "b.pt"
+    a.write_bytes(b"weights-1")
+    b.write_bytes(b"weights-2")
+    assert fingerprint_path(a) != fingerprint_path(b)
+    b.write_bytes(b"weights-1")
+    assert fingerprint_path(a) == fingerprint_path(b)
+    with pytest.raises(FileNotFoundError, match="missing"):
+        fingerprint_path(tmp_path / "missing")
+
+
+def test_a_run_directory_as_checkpoint_finds_best_pt_or_says_what_it_expected(tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "last.pt").write_bytes(b"")
+    with pytest.raises(FileNotFoundError, match=r"without best\.pt.*holds last\.pt"):
+        resolve_checkpoint(run)
+    (run / "best.pt").write_bytes(b"")
+    assert resolve_checkpoint(run) == run / "best.pt"
+    assert resolve_checkpoint(run / "best.pt") == run / "best.pt"
+    with pytest.raises(FileNotFoundError, match="no such checkpoint"):
+        resolve_checkpoint(tmp_path / "nowhere.pt")
