@@ -17,8 +17,6 @@ import os
 import tempfile
 import time
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
 import torch  # noqa: E402
 from tensordict import TensorDict  # noqa: E402
 

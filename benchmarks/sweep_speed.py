@@ -36,7 +36,7 @@ def sweep(launcher: str | None, sweep_dir: str) -> float:
     args = [sys.executable, *JOB, f"hydra.sweep.dir={sweep_dir}"]
     if launcher:
         args.append(f"hydra/launcher={launcher}")
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "MUJOCO_GL": "egl"}
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
     start = time.perf_counter()
     subprocess.run(args, check=True, cwd=ROOT, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - start

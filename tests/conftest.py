@@ -1,19 +1,19 @@
-"""Test-wide settings: headless rendering and one intra-op thread (2-core machines)."""
+"""Test-wide settings: one intra-op thread (2-core machines).
 
-import os
+Rendering is not configured here: the tests run as a new user's shell does, and pilerl
+chooses the offscreen backend itself (``pilerl.rendering``).
+"""
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import pytest
+import torch
 
-import pytest  # noqa: E402
-import torch  # noqa: E402
-
-from pilerl.data import (  # noqa: E402
+from pilerl.data import (
     EpisodeStore,
     RecordingPlan,
     build_dataset,
     record_demonstrations,
 )
-from pilerl.sim import make_gym_env  # noqa: E402
+from pilerl.sim import make_gym_env
 
 torch.set_num_threads(1)
 

@@ -148,7 +148,7 @@ def make_demos(root: Path) -> None:
 
 
 def run_recipe(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "MUJOCO_GL": "egl"}
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
     env["RAY_USAGE_STATS_ENABLED"] = "0"
     return subprocess.run(
         [sys.executable, *args], capture_output=True, text=True, env=env, timeout=600, cwd=cwd

@@ -266,7 +266,7 @@ def test_resume_refuses_a_different_run(cloned, tmp_path):
 
 
 def run_finetune_recipe(*overrides: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "MUJOCO_GL": "egl"}
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
     return subprocess.run(
         [sys.executable, str(ROOT / "recipes" / "finetune.py"), *overrides],
         capture_output=True,

@@ -10,8 +10,8 @@ from pilerl.runs import (
     RUN_FILE,
     RunMismatch,
     begin_run,
-    finish_run,
     fingerprint_path,
+    finish_run,
     read_run_settings,
     resolve_checkpoint,
 )

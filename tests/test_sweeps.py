@@ -84,7 +84,7 @@ def test_metrics_must_be_finite_scalars(tmp_path):
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "MUJOCO_GL": "egl"}
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
     return subprocess.run(
         [sys.executable, *args], capture_output=True, text=True, env=env, timeout=600, cwd=ROOT
     )
