@@ -22,3 +22,12 @@ def save_figure(fig, path: str | Path) -> Path:
         fig.savefig(tmp, dpi=DPI)
     plt.close(fig)
     return path
+
+
+def legend_outside(ax, **kwargs):
+    """A legend to the right of ``ax``, outside the plotted area, so it never covers data.
+
+    ``save_figure``'s tight layout makes room for it.
+    """
+    kwargs.setdefault("fontsize", 7)
+    return ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **kwargs)

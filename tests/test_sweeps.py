@@ -148,3 +148,23 @@ def test_multirun_with_submitit_local_executor(tmp_path):
     assert sorted(p.parent.name for p in tmp_path.glob("*/done.json")) == ["0", "1"]
     metrics = json.loads((tmp_path / "0" / "metrics.json").read_text())
     assert metrics["summer_success"] == 1.0
+
+
+def test_summary_command_limits_the_table_to_one_metric_without_warnings(tmp_path):
+    for i, seed in enumerate([0, 1]):
+        fake_job(tmp_path, i, ["policy=dannet", f"seed={seed}"], {"fill": 0.5 + i, "loss": 1.0})
+    done = subprocess.run(
+        [sys.executable, "-W", "error", "-m", "pilerl.sweeps.summary", str(tmp_path)]
+        + ["--metric", "fill"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "Warning" not in done.stderr
+    header = (tmp_path / "sweep_summary.md").read_text().splitlines()[2]
+    assert header == "| n_jobs | fill_mean | fill_std |"
+    assert "loss_mean" in (tmp_path / "sweep_summary.csv").read_text()  # the CSV keeps all
+    assert header in done.stdout
+    wrong = summary_main([str(tmp_path), "--metric", "flil"])
+    assert wrong == 2

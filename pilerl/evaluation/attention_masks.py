@@ -22,7 +22,7 @@ import numpy as np
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule
 
-from pilerl.figures import save_figure
+from pilerl.figures import legend_outside, save_figure
 from pilerl.policies import INPUT_MASK_KEY, OUTPUT_MASK_KEY, actor_policy
 
 from .control_signals import (
@@ -256,12 +256,7 @@ def plot_attention_masks(
         ax.set_xlabel("time [s]")
         ax.grid(alpha=0.3)
         handles, _ = ax.get_legend_handles_labels()
-        ax.legend(
-            handles=handles + phase_legend_handles(trace.phases),
-            fontsize=7,
-            loc="upper left",
-            ncol=2,
-        )
+        legend_outside(ax, handles=handles + phase_legend_handles(trace.phases))
         ax.set_title(f"{label} over episode {episode}", fontsize=9)
     if title:
         fig.suptitle(f"{title} ({masks.controller})")

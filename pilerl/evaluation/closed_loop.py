@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from pilerl.figures import plt, save_figure
+from pilerl.figures import legend_outside, plt, save_figure
 from pilerl.sim import make_gym_env
 
 from .episode import run_episode
@@ -178,5 +178,5 @@ def plot_fill(records: list[dict], path: str | Path, *, title: str = "") -> Path
     ax.set_xticks(range(len(conditions)), conditions)
     ax.set_ylabel("fill fraction")
     ax.set_title(title)
-    ax.legend(fontsize=8)
+    legend_outside(ax, fontsize=8)
     return save_figure(fig, path)

@@ -37,7 +37,7 @@ from matplotlib.patches import Patch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule
 
-from pilerl.figures import save_figure
+from pilerl.figures import legend_outside, save_figure
 from pilerl.operators import PHASES as OPERATOR_PHASES
 
 CONTROLS = ("boom", "bucket", "throttle")
@@ -259,7 +259,7 @@ def plot_control_signals(
         handles, _ = ax.get_legend_handles_labels()
         if i == 0 and comparison.phases is not None:
             handles += phase_legend_handles(comparison.phases)
-        ax.legend(handles=handles, fontsize=7, loc="upper left", ncol=2)
+        legend_outside(ax, handles=handles)
     axes[-1].set_xlabel("time [s]")
     overall = ", ".join(f"{name} {mse['all']:.3g}" for name, mse in comparison.mse.items())
     axes[0].set_title(f"{title}{': ' if title else ''}open-loop controls (MSE: {overall})")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 
-from pilerl.figures import save_figure
+from pilerl.figures import legend_outside, save_figure
 
 from .episode import Episode
 
@@ -45,5 +45,5 @@ def plot_scoop(episodes: dict[str, Episode], path: str | Path) -> Path:
         ax.set_xlabel("time [s]")
         for ax in axes[:, col]:
             ax.grid(alpha=0.3)
-            ax.legend(fontsize=7, loc="upper left")
+            legend_outside(ax)
     return save_figure(fig, path)

@@ -8,6 +8,7 @@ images linked by the same relative paths), so the two never disagree.
 from __future__ import annotations
 
 import html
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -68,15 +69,16 @@ class Report:
         return "\n".join(lines)
 
     def to_html(self) -> str:
-        e = html.escape
+        e = inline_html
         parts = [
             "<!doctype html>",
             '<html><head><meta charset="utf-8">',
-            f"<title>{e(self.title)}</title>",
+            f"<title>{html.escape(self.title)}</title>",
             "<style>body{font-family:sans-serif;max-width:60em;margin:2em auto;padding:0 1em}"
             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;"
             "padding:.25em .6em;text-align:right}td:first-child,th:first-child{text-align:left}"
-            "img{max-width:100%}figcaption{font-style:italic;color:#444}</style>",
+            "img{max-width:100%}figcaption{font-style:italic;color:#444}"
+            "code{background:#f2f2f2;padding:0 .2em;border-radius:3px}</style>",
             "</head><body>",
             f"<h1>{e(self.title)}</h1>",
         ]
@@ -97,7 +99,7 @@ class Report:
             elif kind == "image":
                 path, caption = content
                 parts.append(
-                    f'<figure><img src="{e(path)}" alt="{e(caption)}">'
+                    f'<figure><img src="{html.escape(path)}" alt="{html.escape(caption)}">'
                     f"<figcaption>{e(caption)}</figcaption></figure>"
                 )
         parts.append("</body></html>")
@@ -110,3 +112,27 @@ class Report:
         write_text_atomic(markdown, self.to_markdown())
         write_text_atomic(page, self.to_html())
         return markdown, page
+
+
+_CODE = re.compile(r"`([^`]+)`")
+_LINK = re.compile(r"\[([^\]]+)\]\(([^)\s]+)\)")
+_STRONG = re.compile(r"\*\*([^*]+)\*\*")
+_EMPHASIS = re.compile(r"(?<![*\w])\*([^*\s][^*]*)\*(?![*\w])")
+
+
+def inline_html(text: str) -> str:
+    """Markdown's inline marks as HTML: `code`, [text](link), **strong**, *emphasis*.
+
+    Everything else is escaped; code spans are kept verbatim (no marks inside them).
+    """
+    pieces = _CODE.split(text)  # odd indices: the insides of code spans
+    out = []
+    for i, piece in enumerate(pieces):
+        if i % 2:
+            out.append(f"<code>{html.escape(piece)}</code>")
+            continue
+        escaped = html.escape(piece, quote=False)
+        escaped = _LINK.sub(lambda m: f'<a href="{html.escape(m[2])}">{m[1]}</a>', escaped)
+        escaped = _STRONG.sub(r"<strong>\1</strong>", escaped)
+        out.append(_EMPHASIS.sub(r"<em>\1</em>", escaped))
+    return "".join(out)

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pilerl.figures import plt, save_figure
+from pilerl.figures import legend_outside, plt, save_figure
 
 from . import paper_numbers
 from .document import Report
@@ -140,7 +140,7 @@ def plot_comparison(paper: dict[Key, int], cells: dict[Key, Cell], path: Path, t
     ax.set_xlim(0, 105)
     ax.set_xlabel("success rate [%] (95% Wilson interval)")
     ax.set_title(title)
-    ax.legend(fontsize=8, loc="lower right")
+    legend_outside(ax, fontsize=8)
     return save_figure(fig, path)
 
 
@@ -348,7 +348,7 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
         steps = all(c.steps_per_epoch for c in curves)
         ax.set_xlabel("gradient steps" if steps else "epoch")
         ax.set_ylabel("validation MSE (winter demos)")
-        ax.legend(fontsize=7)
+        legend_outside(ax)
     save_figure(fig, out_dir / "exp4_validation_loss.png")
     rows = []
     final = {}
@@ -428,12 +428,27 @@ def add_controller_figures(
     ]
     loaded = {name: load_actor(path) for name, path in actors.items()}
     report.heading("Controllers against a demonstration (Fig. 3)")
-    comparison = compare_controls(demonstrations[0], loaded, controls=store.controls)
-    plot_control_signals(comparison, out_dir / "fig3_control_signals.png", title=str(demos))
+    # the reference: the first successful demonstration; a failed one is said to be one
+    reference = next((i for i, m in enumerate(metas) if m.success), 0)
+    chosen = metas[reference]
+    if chosen.success:
+        outcome = f"successful, fill {chosen.fill_fraction:.2f}"
+    elif chosen.success is None:
+        outcome = "outcome not recorded"
+    else:
+        outcome = (
+            f"FAILED (fill {chosen.fill_fraction:.2f}): none of the first {len(metas)} succeeded"
+        )
+    comparison = compare_controls(demonstrations[reference], loaded, controls=store.controls)
+    plot_control_signals(
+        comparison,
+        out_dir / "fig3_control_signals.png",
+        title=f"{Path(demos).name} episode {chosen.id} ({outcome.split(':')[0]})",
+    )
     report.paragraph(
-        f"Demonstration 0 of `{demos}` ({store.description}), down-sampled to "
-        f"{control_hz:g} Hz; each controller reads the demonstration's own readings. "
-        "Checkpoints: " + ", ".join(f"{n} = `{p}`" for n, p in actors.items()) + "."
+        f"Demonstration {chosen.id} of `{demos}` ({store.description}; {outcome}), "
+        f"down-sampled to {control_hz:g} Hz; each controller reads the demonstration's own "
+        "readings. Checkpoints: " + ", ".join(f"{n} = `{p}`" for n, p in actors.items()) + "."
     )
     report.table(
         ["controller", *comparison.controls, "all"],

@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 
 from pilerl.evaluation.metrics import wilson_interval
+from pilerl.runs import read_run_settings
 
 SUMMER, WINTER = "summer", "winter"
 
@@ -69,9 +70,13 @@ def job_directories(sweep_dir: str | Path) -> list[Path]:
 
 
 def job_setup(job_dir: Path) -> JobSetup:
+    """What a train_bc job ran with: its ``run.json`` settings (Hydra's saved config for
+    jobs from before run records), and Hydra's group choices."""
     hydra_dir = job_dir / ".hydra"
     try:
-        config = yaml.safe_load((hydra_dir / "config.yaml").read_text())
+        config = read_run_settings(job_dir) or yaml.safe_load(
+            (hydra_dir / "config.yaml").read_text()
+        )
         choices = yaml.safe_load((hydra_dir / "hydra.yaml").read_text())["hydra"]["runtime"][
             "choices"
         ]

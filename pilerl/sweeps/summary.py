@@ -124,11 +124,24 @@ def summarize_sweep(
     out_dir = Path(out_dir or sweep_dir)
     columns = list(rows[0])
     _write_csv(out_dir / "sweep_summary.csv", rows, columns)
-    _write_markdown(out_dir / "sweep_summary.md", rows, columns, len(jobs), len(finished))
+    if plot_metric is not None and plot_metric not in metric_names:
+        raise ValueError(f"--metric {plot_metric!r}: the jobs report {metric_names}")
+    shown = columns if plot_metric is None else metric_columns(columns, group_keys, plot_metric)
+    _write_markdown(out_dir / "sweep_summary.md", rows, shown, len(jobs), len(finished))
     metric = plot_metric or (metric_names[0] if metric_names else None)
     if metric:
         _plot(out_dir / "sweep_summary.png", rows, group_keys, metric)
     return rows
+
+
+def metric_columns(columns: list[str], group_keys: list[str], metric: str) -> list[str]:
+    """The group keys, ``n_jobs`` and ``metric``'s own columns (mean, std; for a success
+    rate also the pooled rate and its interval)."""
+    test = metric.removesuffix("_success_rate")
+    own = [f"{metric}_mean", f"{metric}_std"]
+    if metric.endswith("_success_rate"):
+        own += [f"{test}_pooled_success_rate", f"{test}_success_low", f"{test}_success_high"]
+    return [*group_keys, "n_jobs", *(c for c in own if c in columns)]
 
 
 def _write_csv(path: Path, rows: list[dict], columns: list[str]) -> None:
@@ -174,18 +187,24 @@ def _plot(path: Path, rows: list[dict], group_keys: list[str], metric: str) -> N
         means = [row.get(f"{metric}_mean", math.nan) for row in rows]
         errors = [row.get(f"{metric}_std", 0.0) for row in rows]
         label = f"{metric} (mean ± std over jobs)"
-    fig, ax = plt.subplots(figsize=(max(4, 1.2 * len(rows)), 4))
-    ax.bar(range(len(rows)), means, yerr=errors, capsize=4, color="tab:blue", alpha=0.8)
-    ax.set_xticks(range(len(rows)), labels, rotation=30, ha="right", fontsize=8)
-    ax.set_ylabel(label)
-    ax.grid(axis="y", alpha=0.3)
+    # horizontal bars: long group labels read left of their bar, never rotated or clipped
+    height = 1.2 + 0.35 * len(rows)
+    width = 4.5 + 0.07 * max(len(label) for label in labels)
+    fig, ax = plt.subplots(figsize=(min(width, 14), height))
+    positions = range(len(rows))[::-1]  # first group on top, as in the table
+    ax.barh(positions, means, xerr=errors, capsize=3, color="tab:blue", alpha=0.8)
+    ax.set_yticks(list(positions), labels, fontsize=8)
+    ax.set_xlabel(label, fontsize=9)
+    ax.grid(axis="x", alpha=0.3)
     save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Summarise a Hydra multirun directory.")
     parser.add_argument("sweep_dir")
-    parser.add_argument("--metric", help="metric to plot (default: the first)")
+    parser.add_argument(
+        "--metric", help="the one metric to tabulate and plot (default: every one; plot the first)"
+    )
     parser.add_argument("--average-over", nargs="*", default=["seed"])
     args = parser.parse_args(argv)
     try:
@@ -195,7 +214,9 @@ def main(argv: list[str] | None = None) -> int:
     except (FileNotFoundError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    print(f"{len(rows)} groups -> {Path(args.sweep_dir) / 'sweep_summary.md'}")
+    table = Path(args.sweep_dir) / "sweep_summary.md"
+    print(table.read_text(), end="")
+    print(f"{len(rows)} groups -> {table} (all columns: sweep_summary.csv)")
     return 0
 
 

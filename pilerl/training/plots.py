@@ -7,7 +7,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from pilerl.figures import save_figure
+from pilerl.figures import legend_outside, save_figure
 
 
 def plot_losses(history: list[dict], path: str | Path, *, title: str = "") -> Path:
@@ -43,5 +43,5 @@ def _plot_curves(curves: dict[str, np.ndarray], path: str | Path, *, title: str)
     ax.set_yscale("log")
     ax.set_title(title)
     ax.grid(alpha=0.3)
-    ax.legend()
+    legend_outside(ax, fontsize=8)
     return save_figure(fig, path)
