@@ -19,7 +19,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import TeleopConfig, register_configs
 from pilerl.data import EpisodeMeta, EpisodeStore, record_episode
-from pilerl.operators.keyboard import KeyboardOperator
+from pilerl.operators.keyboard import KeyboardOperator, close_viewer, key_bindings_text
 from pilerl.runtime import limit_threads
 from pilerl.sim import make_gym_env
 
@@ -48,7 +48,9 @@ def main(cfg: DictConfig) -> None:
         description="keyboard teleoperation",
     )
     operator = KeyboardOperator()
-    with mujoco.viewer.launch_passive(sim.model, sim.data, key_callback=operator.on_key) as viewer:
+    print(key_bindings_text(), flush=True)
+    viewer = mujoco.viewer.launch_passive(sim.model, sim.data, key_callback=operator.on_key)
+    try:
 
         def act(sensors):  # paced to real time, the viewer refreshed every step
             viewer.sync()
@@ -73,6 +75,9 @@ def main(cfg: DictConfig) -> None:
                 ),
             )
             log.info("episode %d: fill %.2f, success %s", meta.id, meta.fill_fraction, meta.success)
+    finally:
+        close_viewer(viewer)  # before the process exits: see close_viewer
+        env.close()
 
 
 if __name__ == "__main__":

@@ -143,7 +143,7 @@ class TeleopConfig:
     out_dir: str = MISSING
 
 
-LOGGER_BACKENDS = ("csv", "tensorboard", "none")
+LOGGER_BACKENDS = ("csv", "tensorboard", "wandb", "none")
 
 
 @dataclass

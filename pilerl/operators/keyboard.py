@@ -13,6 +13,8 @@ a control's level by ``STEP`` and the level is held until changed; space stops a
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 STEP = 0.25  # change of a control level per key press
@@ -27,6 +29,35 @@ KEYMAP = {
     KEY_W: (2, +STEP),
     KEY_S: (2, -STEP),
 }
+
+
+KEY_BINDINGS = (
+    ("Up / Down", "boom raise / lower"),
+    ("Right / Left", "bucket curl / dump"),
+    ("W / S", "throttle forward / back"),
+    ("Space", "all controls to zero"),
+)
+VIEWER_CLOSE_TIMEOUT_S = 10.0
+
+
+def key_bindings_text() -> str:
+    """The keys as a small table for the terminal (printed when teleoperation starts)."""
+    width = max(len(key) for key, _ in KEY_BINDINGS)
+    lines = [f"  {key:<{width}}  {action}" for key, action in KEY_BINDINGS]
+    return "\n".join([f"Keys (each press steps a level by {STEP:g}; levels are held):", *lines])
+
+
+def close_viewer(viewer) -> None:
+    """Close a ``mujoco.viewer.launch_passive`` window and wait for its thread to end.
+
+    The passive viewer renders in a daemon thread that destroys its window after the
+    loop ends; a process that exits meanwhile runs ``glfw.terminate`` at the same time,
+    which crashed at random (SIGSEGV on exit). Joining the thread first avoids the race.
+    """
+    viewer.close()
+    for thread in threading.enumerate():
+        if thread is not threading.current_thread() and "_launch_internal" in thread.name:
+            thread.join(timeout=VIEWER_CLOSE_TIMEOUT_S)
 
 
 class KeyboardOperator:
