@@ -21,7 +21,12 @@ from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import EvaluateConfig, register_configs
 from pilerl.evaluation.closed_loop import run_closed_loop
-from pilerl.evaluation.evaluator import ActorController, ScriptedController, success_metrics
+from pilerl.evaluation.evaluator import (
+    ActorController,
+    ScriptedController,
+    build_envs,
+    success_metrics,
+)
 from pilerl.policies import load_actor
 from pilerl.rendering import resolve_videos
 from pilerl.runs import begin_run, finish_run, resolve_checkpoint
@@ -46,6 +51,8 @@ def main(cfg: DictConfig) -> float:
         load_actor(checkpoint)
         name = config.name or checkpoint.resolve().parent.name
         controller = ActorController(str(checkpoint), name=name)
+    plan = config.evaluation.plan(config.env)
+    build_envs(plan)  # a bad condition or env setting fails now, before anything is written
     settings = OmegaConf.to_container(cfg, resolve=True)
     if begin_run(out_dir, settings, inputs={"checkpoint": checkpoint}):
         log.info("%s already finished: skipping (same settings)", out_dir)
@@ -54,7 +61,7 @@ def main(cfg: DictConfig) -> float:
     # --- episodes, summary, plots, videos
     summary = run_closed_loop(
         controller,
-        config.evaluation.plan(config.env),
+        plan,
         out_dir,
         workers=config.evaluation.workers,
         videos=videos,

@@ -65,13 +65,6 @@ def main(cfg: DictConfig) -> float:
     if train_store.stats is None:
         raise ValueError(f"{config.train_data}: no statistics; build it with build_dataset.py")
 
-    # --- this run directory: skip when finished, refuse another config or dataset
-    inputs = {"train_data": config.train_data, "validation_data": config.validation_data}
-    rates = sorted({meta.rate_hz for meta in train_store.episodes})
-    settings = OmegaConf.to_container(cfg, resolve=True)
-    if begin_run(run_dir, settings, inputs=inputs, control_hz=rates):
-        log.info("%s already finished: skipping (same settings and data)", run_dir)
-        return _objective(json.loads((run_dir / METRICS_FILE).read_text()))
     train = train_store.to_tensordict()
     validation = (
         EpisodeStore.open(config.validation_data).to_tensordict()
@@ -101,6 +94,14 @@ def main(cfg: DictConfig) -> float:
         seed=config.seed,
         trainer=config.trainer,
     )
+
+    # --- this run directory: skip when finished, refuse another config or dataset
+    inputs = {"train_data": config.train_data, "validation_data": config.validation_data}
+    rates = sorted({meta.rate_hz for meta in train_store.episodes})
+    resolved = OmegaConf.to_container(cfg, resolve=True)
+    if begin_run(run_dir, resolved, inputs=inputs, control_hz=rates, sensors=sensors):
+        log.info("%s already finished: skipping (same settings and data)", run_dir)
+        return _objective(json.loads((run_dir / METRICS_FILE).read_text()))
 
     if config.ensemble_seeds > 1:  # many seeds at once: curves, not a deployable model
         seeds = list(range(config.seed, config.seed + config.ensemble_seeds))

@@ -1,0 +1,145 @@
+"""Every command in README.md and docs/*.md runs as written (on tiny budgets).
+
+The shell blocks of each document are read in order and run in one fresh working
+directory per document, so a command may use what an earlier command of the same
+document wrote (demonstrations, datasets, checkpoints). Recipes and ``python -m``
+modules run in this process (imports are paid once); budgets are cut through overrides
+(``TINY``), which only shrink episodes, steps and frames. A command that cannot run here
+says why in ``NOT_RUN``: the README's two front-door commands (CI runs them as written),
+a Ray cluster's commands, and commands over a user's own files. Every other command must
+run and exit 0, so the documents cannot drift from the code.
+"""
+
+from __future__ import annotations
+
+import re
+import runpy
+import shlex
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+BLOCK = re.compile(r"```(?:bash|sh|shell)\n(.*?)```", re.S)
+
+# overrides appended to each recipe's command: tiny budgets, one worker process
+TINY = {
+    "record.py": ["n_episodes=2", "record_hz=20", "workers=1"],
+    "build_dataset.py": [],
+    "train_bc.py": [
+        "gradient_steps=4",
+        "epochs=1",
+        "evaluation.episodes=1",
+        "evaluation.workers=1",
+        "evaluation.videos=false",
+    ],
+    "evaluate.py": ["evaluation.episodes=1", "evaluation.workers=1", "evaluation.videos=false"],
+    "finetune.py": [
+        "time_budget_minutes=0.02",
+        "algorithm.frames_per_batch=128",
+        "algorithm.minibatch_size=64",
+        "collection.envs_per_worker=2",
+        "evaluation.every_frames=0",
+        "evaluation.final_episodes=1",
+        "evaluation.workers=1",
+        "checkpoint_every_frames=128",
+    ],
+    "scoop.py": ["video=false", "env.start_distance_range_m=[1.0,1.0]"],
+    "pipeline.py": [],
+}
+# command prefix -> why it is not run by this test
+NOT_RUN = {
+    "bash scripts/setup.sh": "the README's front door: CI (.ci/run) runs both as written",
+    "ray ": "needs a Ray cluster",
+    "python recipes/record.py --multirun hydra/launcher=ray_cluster": "needs a Ray cluster",
+    "python recipes/train_bc.py --multirun hydra/launcher=ray_cluster": "needs a Ray cluster",
+}
+
+
+@dataclass(frozen=True)
+class Command:
+    document: Path
+    line: int
+    text: str
+
+    @property
+    def argv(self) -> list[str]:
+        words = shlex.split(self.text, comments=True)
+        if words and words[0].endswith("python"):
+            words = words[1:]
+        return words
+
+    def __str__(self) -> str:
+        return f"{self.document.relative_to(ROOT)}:{self.line}: {self.text}"
+
+
+def document_commands(document: Path) -> list[Command]:
+    """The commands of ``document``'s shell blocks, continuation lines joined."""
+    text = document.read_text()
+    commands = []
+    for block in BLOCK.finditer(text):
+        first_line = text[: block.start(1)].count("\n") + 1
+        lines = block.group(1).splitlines()
+        i = 0
+        while i < len(lines):
+            start, command = i, lines[i]
+            while command.rstrip().endswith("\\") and i + 1 < len(lines):
+                i += 1
+                command = command.rstrip()[:-1] + " " + lines[i].strip()
+            i += 1
+            command = command.strip()
+            if command and not command.startswith("#"):
+                commands.append(Command(document, first_line + start, command))
+    return commands
+
+
+def not_run_reason(command: Command) -> str | None:
+    plain = command.text.removeprefix(".venv/bin/")
+    return next((why for prefix, why in NOT_RUN.items() if plain.startswith(prefix)), None)
+
+
+def run_command(command: Command) -> None:
+    """Run one documented command in this process, with ``TINY`` budgets for recipes."""
+    argv = command.argv
+    if not argv:
+        raise AssertionError(f"{command}: not a command")
+    placeholders = [w for w in argv if "<" in w or w in ("...", "…")]
+    assert not placeholders, f"{command}: placeholders {placeholders} cannot run as written"
+    old_argv = sys.argv
+    try:
+        if argv[0] == "-m":
+            sys.argv = [argv[1], *argv[2:]]
+            runpy.run_module(argv[1], run_name="__main__", alter_sys=True)
+        elif argv[0].startswith("recipes/"):
+            recipe = ROOT / argv[0]
+            sys.argv = [str(recipe), *argv[1:], *TINY.get(recipe.name, [])]
+            runpy.run_path(str(recipe), run_name="__main__")
+        else:
+            raise AssertionError(f"{command}: add it to NOT_RUN with a reason, or run it here")
+    except SystemExit as exit_:
+        assert exit_.code in (0, None), f"{command}: exit code {exit_.code}"
+    finally:
+        sys.argv = old_argv
+
+
+def test_every_documented_command_is_run_or_says_why_not():
+    commands = [c for d in DOCUMENTS for c in document_commands(d)]
+    assert len(commands) > 30
+    for command in commands:
+        argv = command.argv
+        runnable = argv and (argv[0] == "-m" or argv[0].startswith("recipes/"))
+        assert runnable or not_run_reason(command), f"{command}: neither run nor excused"
+
+
+@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: p.name)
+def test_documented_commands_run_as_written(document, tmp_path, monkeypatch):
+    commands = [c for c in document_commands(document) if not_run_reason(c) is None]
+    if not commands:
+        pytest.skip(f"{document.name} has no command to run here")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    for command in commands:
+        run_command(command)
