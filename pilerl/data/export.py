@@ -33,6 +33,7 @@ from pilerl.io import atomic_path, write_text_atomic
 
 from .importers import (
     ControlSpec,
+    CsvSpec,
     LogMapping,
     MappingError,
     SensorSpec,
@@ -225,6 +226,7 @@ def mapping_for_export(
         controls={name: ControlSpec(column=control_column(name)) for name in controls},
         time=TimeSpec(column="time_s", start_at_zero=False),
         episode_column="episode",
+        csv=CsvSpec(delimiter=",", decimal="."),
     )
 
 
