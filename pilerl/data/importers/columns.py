@@ -63,6 +63,8 @@ def reject_first(
     i = int(np.argmax(bad))
     if nonnumeric[i]:
         problem = f"non-numeric value {table.frame[column].iloc[i]!r}"
+        if i == 0 and _is_unit(table.frame[column].iloc[i]):
+            problem += " (a units row? set csv.units_row: true in the mapping)"
     elif np.isnan(values[i]):
         problem = "missing value (empty or NaN)"
     elif not np.isfinite(values[i]):
@@ -70,6 +72,14 @@ def reject_first(
     else:
         problem = describe_range(i)
     raise table.error(problem, column=column, row=i + 1)
+
+
+def _is_unit(cell: object) -> bool:
+    try:
+        unit_table.normalise(str(cell))
+    except unit_table.UnitError:
+        return False
+    return True
 
 
 def unit_conversion(

@@ -98,9 +98,10 @@ def _iso_times(table: LogTable, column: str) -> np.ndarray:
         raise table.error(
             f"not an ISO 8601 timestamp: {series.iloc[i]!r}", column=column, row=i + 1
         )
-    nanoseconds = stamps.astype("int64").to_numpy()  # ns since 1970 (UTC)
-    origin = int(nanoseconds[0])
-    return (nanoseconds - origin) * 1e-9 + origin * 1e-9
+    # seconds since the first row, plus the first row's POSIX time (UTC); the resolution
+    # of pandas' datetimes varies, so no integer unit is assumed
+    since_first = (stamps - stamps.iloc[0]).dt.total_seconds().to_numpy(dtype=np.float64)
+    return since_first + stamps.iloc[0].timestamp()
 
 
 def check_increasing(

@@ -153,20 +153,22 @@ def _show(delimiter: str) -> str:
 
 
 def _sniff_delimiter(kept: list[tuple[int, str]]) -> str:
-    """The separator that splits the header and the first rows into the same number (> 1)
-    of fields; the one giving most fields if several do; ',' if none does."""
-    sample = [line for _, line in kept[: SNIFF_ROWS + 1]]
-    best, best_width = ",", 1
+    """The separator that splits the header into more than one field and the most of the
+    first rows into as many fields as the header (a short or cut row does not change the
+    choice); on a tie the one giving more fields; ',' if none splits the header."""
+    sample = "".join(line for _, line in kept[: SNIFF_ROWS + 1])
+    best, best_score = ",", (0, 0)
     for delimiter in DELIMITERS:
         try:
-            widths = {
-                len(row) for row in csv.reader(io.StringIO("".join(sample)), delimiter=delimiter)
-            }
+            rows = [r for r in csv.reader(io.StringIO(sample), delimiter=delimiter) if r]
         except csv.Error:
             continue
-        widths.discard(0)
-        if len(widths) == 1 and (width := widths.pop()) > best_width:
-            best, best_width = delimiter, width
+        width = len(rows[0]) if rows else 0
+        if width < 2:
+            continue
+        score = (sum(len(r) == width for r in rows[1:]), width)
+        if score > best_score:
+            best, best_score = delimiter, score
     return best
 
 
