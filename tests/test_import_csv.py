@@ -87,7 +87,9 @@ def test_declared_separator_and_decimal_are_used(tmp_path):
     mapping_dict["csv"].update(delimiter=";", decimal=",")
     assert_matches(read_all(path, load_mapping(mapping_dict))[0].episode, values)
     mapping_dict["csv"].update(decimal=".")
-    with pytest.raises(LogImportError, match=r"column 'Time', row 1 .*non-numeric value '0,000000'"):
+    with pytest.raises(
+        LogImportError, match=r"column 'Time', row 1 .*non-numeric value '0,000000'"
+    ):
         read_all(path, load_mapping(mapping_dict))
 
 
@@ -133,7 +135,9 @@ def test_header_aliases_case_and_spacing(tmp_path):
     values = scoop(15)
     path = write_logger_csv(tmp_path / "log.csv", values)
     mapping_dict = logger_mapping_dict()
-    mapping_dict["sensors"]["boom_angle"].update(column="th1", aliases=["Boom_Angle", "boom  ANGLE"])
+    mapping_dict["sensors"]["boom_angle"].update(
+        column="th1", aliases=["Boom_Angle", "boom  ANGLE"]
+    )
     mapping_dict["controls"]["boom"]["column"] = "JOY BOOM"
     (episode,) = read_all(path, load_mapping(mapping_dict))
     assert_matches(episode.episode, values)
@@ -164,7 +168,9 @@ def test_time_in_seconds_milliseconds_or_iso_timestamps(tmp_path, unit):
     else:
         base = np.datetime64("2025-02-11T10:15:03.000")
         times = [str(base + np.timedelta64(int(ms), "ms")) for ms in raw["Time"]]
-    units = dict([("Time", ""), *RAW_COLUMNS.values(), *((c, "%") for c in CONTROL_COLUMNS.values())])
+    units = dict(
+        [("Time", ""), *RAW_COLUMNS.values(), *((c, "%") for c in CONTROL_COLUMNS.values())]
+    )
     columns = {
         "Time": times,
         **{f"{k} [{units[k]}]": [f"{v:.6f}" for v in col] for k, col in raw.items() if k != "Time"},
@@ -209,7 +215,9 @@ def test_short_row_in_the_middle_is_named(tmp_path):
     lines = path.read_text().splitlines()
     lines[10] = ";".join(lines[10].split(";")[:5])
     path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(LogImportError, match=r"row 7 \(1-based data row\) at line 11: row has 5 of 12"):
+    with pytest.raises(
+        LogImportError, match=r"row 7 \(1-based data row\) at line 11: row has 5 of 12"
+    ):
         read_all(path, logger_mapping())
 
 
@@ -242,7 +250,11 @@ def test_dropped_samples_and_jitter_are_measured_not_hidden(tmp_path):
     assert [row for row, _ in sampling.gaps] == [51, 118]  # rows after the gaps (1-based)
     assert sampling.dropped == 4
     assert 0.0005 < sampling.jitter_s < 0.003
-    np.testing.assert_allclose(episode.episode["time_s"].numpy()[50] - episode.episode["time_s"].numpy()[49], 0.08, atol=0.005)
+    np.testing.assert_allclose(
+        episode.episode["time_s"].numpy()[50] - episode.episode["time_s"].numpy()[49],
+        0.08,
+        atol=0.005,
+    )
 
 
 def test_max_gap_refuses_dropped_samples_naming_the_row(tmp_path):
@@ -264,5 +276,7 @@ def test_resampling_happens_only_on_request(tmp_path):
     np.testing.assert_allclose(td["time_s"].numpy(), np.arange(51) / 25.0, atol=1e-9)
     grid = np.arange(51) * 2  # 25 Hz rows of the 50 Hz scoop
     for name in SENSOR_NAMES:  # the slow sensors interpolate across the gap
-        np.testing.assert_allclose(td[name].numpy()[:, 0], values[name][grid], atol=0.05 * np.ptp(values[name]))
+        np.testing.assert_allclose(
+            td[name].numpy()[:, 0], values[name][grid], atol=0.05 * np.ptp(values[name])
+        )
     assert episode.sampling.resampled_hz == 25.0 and len(episode.sampling.gaps) == 1

@@ -22,6 +22,9 @@ from ..mapping import ColumnRequest, LogMapping
 from .base import LogTable, check_rows, resolve_columns
 
 
+TIME_TOLERANCE_S = 1e-6  # a message this close after a grid time counts at it (float rounding)
+
+
 @dataclass
 class Signal:
     """One signal of a message log: sample times [s], values, the unit the log declares."""
@@ -108,18 +111,21 @@ def sample_onto_grid(
         signal.times_s, signal.values = signal.times_s[order], signal.values[order]
         if not np.isfinite(signal.times_s).all():
             raise LogImportError(path, "non-finite message time", column=names[name])
+    origin = min(float(s.times_s[0]) for s in chosen.values())
+    for signal in chosen.values():  # seconds since the first message: no 1e9-s offsets
+        signal.times_s = signal.times_s - origin
     start = max(float(s.times_s[0]) for s in chosen.values())
     stop = min(float(s.times_s[-1]) for s in chosen.values())
     if stop < start:
         raise LogImportError(
             path, f"the mapped {kind} signals never overlap in time: no sample has all of them"
         )
-    n = int(np.floor((stop - start) * rate_hz + 1e-9)) + 1
+    n = int(np.floor((stop - start + TIME_TOLERANCE_S) * rate_hz)) + 1
     check_rows(path, n)
     grid = start + np.arange(n) / rate_hz
     frame = {}
     for name, signal in chosen.items():
-        last = np.searchsorted(signal.times_s, grid + 1e-12, side="right") - 1
+        last = np.searchsorted(signal.times_s, grid + TIME_TOLERANCE_S, side="right") - 1
         frame[name] = signal.values[last]
     table = LogTable(
         path,
