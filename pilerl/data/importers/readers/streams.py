@@ -21,7 +21,6 @@ from ..errors import LogImportError
 from ..mapping import ColumnRequest, LogMapping
 from .base import LogTable, check_rows, resolve_columns
 
-
 TIME_TOLERANCE_S = 1e-6  # a message this close after a grid time counts at it (float rounding)
 
 
