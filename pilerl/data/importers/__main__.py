@@ -109,7 +109,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         out_dir=out,
         required_sensors=required,
         reference_ranges=reference,
-        reference_name=f"simulator {args.simulator!r}" if args.simulator else "simulator",
+        reference_name=f"simulator {args.simulator}" if args.simulator else "simulator",
         control_names=store.controls,
     )
     print(f"quality report: {report.path} ({len(report.warnings)} warning(s))")

@@ -11,8 +11,10 @@ What it measures, per episode and over the import:
 * sensors **out of range** of a reference (the simulator's declared ranges, when given:
   the controller will see readings the simulator never produced);
 * **episodes per condition**, with their outcomes;
-* the **single-control share** (samples where exactly one control is active, |u| >
-  ``ACTIVE``), the operator style the paper's controllers imitate;
+* the **single-control share**: of the samples where a control is active (|u| >
+  ``ACTIVE``), the share with exactly one active, the operator style the paper's
+  controllers imitate; controls held active almost throughout (share >= ``HELD``, such as
+  a throttle pedal) are left out and named;
 * a **warning** for every sensor the chosen controller needs that the import lacks.
 """
 
@@ -33,6 +35,8 @@ FROZEN_S = 2.0  # an unchanged reading for this long is reported as frozen [s]
 CLIP_RUN = 3  # samples: a flat run at the episode's extreme at least this long is clipping
 CLIP_SHARE = 0.02  # ... and covering at least this share of the episode
 ACTIVE = 0.05  # |u| above this counts as an active control
+HELD = 0.95  # a control active in this share of all samples (a throttle pedal held down)
+# says nothing about one-control-at-a-time operation and is left out of that share
 STALE_PERIODS = 3.0  # message signals: a message gap longer than this many grid periods
 
 
@@ -63,11 +67,22 @@ class EpisodeQuality:
     stale_signals: dict[str, float] = field(default_factory=dict)  # column -> longest gap [s]
 
 
+def counted_controls(episodes: Sequence[ImportedEpisode]) -> list[int]:
+    """Indices of the controls the single-control share counts (those not held active in
+    ``HELD`` of all samples)."""
+    if not episodes:
+        return []
+    actions = np.concatenate([e.episode["action"].numpy() for e in episodes])
+    active = np.mean(np.abs(actions) > ACTIVE, axis=0)
+    return [k for k in range(actions.shape[-1]) if active[k] < HELD]
+
+
 def episode_quality(
     episode: ImportedEpisode,
     name: str,
     *,
     reference_ranges: Mapping[str, tuple[float, float]] | None = None,
+    controls: Sequence[int] | None = None,
 ) -> EpisodeQuality:
     td = episode.episode
     time_s = td["time_s"].numpy()
@@ -97,10 +112,12 @@ def episode_quality(
             if outside > 0:
                 quality.out_of_reference[sensor] = outside
     actions = td["action"].numpy()
-    if actions.shape[-1]:
-        active = (np.abs(actions) > ACTIVE).sum(-1)
-        quality.single_control_share = float(np.mean(active == 1))
+    counted = list(range(actions.shape[-1])) if controls is None else list(controls)
+    if counted:
+        active = (np.abs(actions[:, counted]) > ACTIVE).sum(-1)
         quality.no_control_share = float(np.mean(active == 0))
+        if (active > 0).any():
+            quality.single_control_share = float(np.mean(active[active > 0] == 1))
     grid_dt = 1.0 / episode.meta.rate_hz
     quality.stale_signals = {
         column: gap for column, gap in episode.signal_gaps.items() if gap > STALE_PERIODS * grid_dt
@@ -169,8 +186,9 @@ def quality_report(
         plots: draw the per-episode plots (needs ``out_dir``).
     """
     names = [_episode_name(e, i) for i, e in enumerate(episodes)]
+    counted = counted_controls(episodes)
     measured = [
-        episode_quality(e, n, reference_ranges=reference_ranges)
+        episode_quality(e, n, reference_ranges=reference_ranges, controls=counted)
         for e, n in zip(episodes, names, strict=True)
     ]
     warnings = _warnings(episodes, measured, required_sensors, reference_name)
@@ -183,7 +201,9 @@ def quality_report(
                     episode, quality, out / f"{quality.name}.png", reference_ranges, control_names
                 )
             )
-    markdown = _markdown(episodes, measured, warnings, plot_paths, out, reference_name)
+    markdown = _markdown(
+        episodes, measured, warnings, plot_paths, out, reference_name, counted, control_names
+    )
     path = None
     if out is not None:
         path = out / "report.md"
@@ -249,6 +269,8 @@ def _markdown(
     plot_paths: Sequence[Path],
     out: Path | None,
     reference_name: str,
+    counted: Sequence[int],
+    control_names: Sequence[str] | None,
 ) -> str:
     lines = ["# Import data-quality report", ""]
     files = list(dict.fromkeys(str(e.file) for e in episodes))
@@ -316,12 +338,16 @@ def _markdown(
         )
     shares = [q.single_control_share for q in measured if np.isfinite(q.single_control_share)]
     weights = [q.rows for q in measured if np.isfinite(q.single_control_share)]
-    if shares:
-        overall = float(np.average(shares, weights=weights))
+    if episodes:
+        n_controls = episodes[0].episode["action"].shape[-1]
+        names = list(control_names or [f"u{k}" for k in range(n_controls)])
+        held = [names[k] for k in range(n_controls) if k not in counted]
+        overall = f"{np.average(shares, weights=weights):.0%}" if shares else "–"
         lines += [
             "",
-            f"Single-control share over all samples: {overall:.0%} "
-            f"(|u| > {ACTIVE} counts as active).",
+            f"Single-control share: {overall} of the samples with an active control have "
+            f"exactly one (|u| > {ACTIVE}), counting {[names[k] for k in counted]}"
+            + (f"; {held} active almost throughout and not counted." if held else "."),
         ]
     if plot_paths:
         lines += ["", "## Plots", ""]
