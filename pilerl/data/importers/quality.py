@@ -37,6 +37,7 @@ CLIP_SHARE = 0.02  # ... and covering at least this share of the episode
 ACTIVE = 0.05  # |u| above this counts as an active control
 HELD = 0.95  # a control active in this share of all samples (a throttle pedal held down)
 # says nothing about one-control-at-a-time operation and is left out of that share
+REFERENCE_TOLERANCE = 1e-4  # of the reference range's span: rounding in a log is not "outside"
 STALE_PERIODS = 3.0  # message signals: a message gap longer than this many grid periods
 
 
@@ -108,7 +109,8 @@ def episode_quality(
             quality.clipped[sensor] = share
         if reference_ranges and sensor in reference_ranges:
             low, high = reference_ranges[sensor]
-            outside = float(np.mean((values < low) | (values > high)))
+            slack = REFERENCE_TOLERANCE * (high - low) if np.isfinite(high - low) else 0.0
+            outside = float(np.mean((values < low - slack) | (values > high + slack)))
             if outside > 0:
                 quality.out_of_reference[sensor] = outside
     actions = td["action"].numpy()
