@@ -280,3 +280,10 @@ def test_resampling_happens_only_on_request(tmp_path):
             td[name].numpy()[:, 0], values[name][grid], atol=0.05 * np.ptp(values[name])
         )
     assert episode.sampling.resampled_hz == 25.0 and len(episode.sampling.gaps) == 1
+
+
+def test_a_column_named_twice_in_the_header_is_refused(tmp_path):
+    path = write_logger_csv(tmp_path / "log.csv", scoop(5))
+    path.write_text(path.read_text().replace("Engine temp", "p boom", 1))
+    with pytest.raises(LogImportError, match=r"column 'p boom': the header names 'p boom' twice"):
+        read_all(path, logger_mapping())

@@ -12,7 +12,14 @@ import numpy as np
 import pytest
 from import_logs_helpers import MACHINE_RANGES, UNITS
 
-from pilerl.data.importers import LogImportError, create_store, import_logs, load_mapping, read_all
+from pilerl.data.importers import (
+    LogImportError,
+    create_store,
+    import_logs,
+    load_mapping,
+    quality_report,
+    read_all,
+)
 
 RATE_HZ = 50.0
 SENSOR_RATE_HZ = 100.0  # messages of the sensors; controls come at 20 Hz
@@ -84,7 +91,9 @@ def assert_imported(path: Path, mapping: dict, tmp_path: Path, atol: float = 1e-
 
 
 # ------------------------------------------------------------------ MCAP (JSON messages)
-def write_mcap(path: Path) -> Path:
+def write_mcap(path: Path, silent: tuple[str, float, float] | None = None) -> Path:
+    """MCAP with JSON messages; ``silent = (name, from_s, to_s)`` drops that signal's
+    messages in the interval (a dropout)."""
     from mcap.writer import Writer
 
     with path.open("wb") as stream:
@@ -103,6 +112,8 @@ def write_mcap(path: Path) -> Path:
                 topic=f"/machine/{name}", message_encoding="json", schema_id=schema
             )
             for t in message_times(name):
+                if silent and name == silent[0] and silent[1] < t < silent[2]:
+                    continue
                 value = float(SIGNALS[name](np.array(t)))
                 events.append((t, channel, {"value": value, "status": {"ok": True}}))
         for t, channel, message in sorted(events, key=lambda e: e[0]):
@@ -117,6 +128,17 @@ def write_mcap(path: Path) -> Path:
 def test_mcap_json_log_imports(tmp_path):
     path = write_mcap(tmp_path / "log.mcap")
     assert_imported(path, stream_mapping(lambda n: f"/machine/{n}.value"), tmp_path)
+
+
+def test_a_signal_dropout_in_a_message_log_is_reported(tmp_path):
+    path = write_mcap(tmp_path / "log.mcap", silent=("pump_angle", 0.5, 1.0))
+    episodes = read_all(path, load_mapping(stream_mapping(lambda n: f"/machine/{n}.value")))
+    assert episodes[0].signal_gaps["/machine/pump_angle.value"] == pytest.approx(0.5)
+    report = quality_report(episodes, plots=False)
+    assert report.warnings == [
+        "episode_000000: no '/machine/pump_angle.value' message for 500 ms (held in between)"
+    ]
+    assert any("sampled at 50 Hz by holding the last message" in n for n in episodes[0].notes)
 
 
 # ------------------------------------------------------------------ ROS 1 and ROS 2 bags

@@ -82,6 +82,10 @@ def resolve_columns(
     for request in requests:
         found = None
         for candidate in request.candidates:
+            if available.count(candidate) > 1:
+                raise LogImportError(
+                    path, f"the header names {candidate!r} twice; rename one", column=request.name
+                )
             if candidate in available:
                 found = candidate
                 break

@@ -28,7 +28,7 @@ from .base import LogTable, check_rows, resolve_columns, split_unit
 CSV_SUFFIXES = (".csv", ".tsv", ".csv.gz", ".tsv.gz")
 DELIMITERS = ("\t", ";", ",", "|")
 SNIFF_ROWS = 50
-MAX_TEXT_BYTES = 4 << 30  # 4 GiB of text: larger logs should be split or stored as Parquet
+MAX_TEXT_BYTES = 2 << 30  # 2 GiB of text: larger logs should be split or stored as Parquet
 _COMMA_NUMBER = re.compile(r"^\s*[+-]?\d+,\d+(?:[eE][+-]?\d+)?\s*$")
 _POINT_NUMBER = re.compile(r"^\s*[+-]?\d*\.\d+(?:[eE][+-]?\d+)?\s*$")
 
@@ -96,6 +96,10 @@ def read_delimited(path: Path, mapping: LogMapping, requests: Sequence[ColumnReq
 # ---------------------------------------------------------------------------- bytes / text
 def _read_bytes(path: Path) -> bytes:
     if not path.name.lower().endswith(".gz"):
+        if path.stat().st_size > MAX_TEXT_BYTES:
+            raise LogImportError(
+                path, f"larger than {MAX_TEXT_BYTES} bytes; split the log or store it as Parquet"
+            )
         return path.read_bytes()
     try:
         with gzip.open(path, "rb") as stream:
@@ -107,7 +111,10 @@ def _read_bytes(path: Path) -> bytes:
     except (gzip.BadGzipFile, zlib.error, OSError) as error:
         raise LogImportError(path, f"corrupt gzip archive ({error})") from None
     if len(data) > MAX_TEXT_BYTES:
-        raise LogImportError(path, f"more than {MAX_TEXT_BYTES} bytes of text; split the log")
+        raise LogImportError(
+            path,
+            f"more than {MAX_TEXT_BYTES} bytes once decompressed (a gzip bomb?); split the log",
+        )
     return data
 
 
