@@ -287,3 +287,34 @@ def test_a_column_named_twice_in_the_header_is_refused(tmp_path):
     path.write_text(path.read_text().replace("Engine temp", "p boom", 1))
     with pytest.raises(LogImportError, match=r"column 'p boom': the header names 'p boom' twice"):
         read_all(path, logger_mapping())
+
+
+def test_file_units_and_a_mapping_scale_do_not_convert_twice(tmp_path):
+    values = scoop(10)
+    path = write_logger_csv(tmp_path / "log.csv", values)
+    old = logger_mapping_dict()
+    old["sensors"]["drive_pressure"]["scale"] = 0.1  # written for a file without units
+    with pytest.raises(
+        LogImportError,
+        match=r"column 'p drive': the file gives the unit 'bar' and the mapping a scale 0.1",
+    ):
+        read_all(path, load_mapping(old))
+    old["sensors"]["drive_pressure"].update(source_unit="bar", scale=1.02)  # calibration
+    (episode,) = read_all(path, load_mapping(old))
+    np.testing.assert_allclose(
+        episode.episode["drive_pressure"].numpy()[:, 0], values["drive_pressure"] * 1.02, rtol=1e-5
+    )
+
+
+def test_bracketed_words_that_are_not_units_stay_in_the_name(tmp_path):
+    path = write_logger_csv(tmp_path / "log.csv", scoop(10))
+    path.write_text(path.read_text().replace("p tele", "p tele (front)", 1))
+    mapping_dict = logger_mapping_dict()
+    mapping_dict["sensors"]["telescope_pressure"]["column"] = "p tele (front)"
+    assert len(read_all(path, load_mapping(mapping_dict))) == 1
+
+
+def test_a_declared_units_row_that_holds_numbers_is_named(tmp_path):
+    path = write_logger_csv(tmp_path / "log.csv", scoop(10), units_row=False)
+    with pytest.raises(LogImportError, match=r"line 4: csv.units_row is true, but the line"):
+        read_all(path, logger_mapping())

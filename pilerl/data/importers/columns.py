@@ -83,17 +83,26 @@ def _is_unit(cell: object) -> bool:
 
 
 def unit_conversion(
-    table: LogTable, column: str, declared: str | None, target: str
+    table: LogTable, column: str, declared: str | None, target: str, scale: float = 1.0
 ) -> tuple[float, float, str | None]:
     """``(factor, offset, source unit)`` from the raw unit to ``target``.
 
     The raw unit is the mapping's ``source_unit`` or else the one the file declares;
     both given and different is an error (one of them is wrong), as is a unit that does
-    not convert to ``target``. ``raw`` and no unit at all mean no conversion.
+    not convert to ``target``. ``raw`` and no unit at all mean no conversion. A unit
+    from the file together with a ``scale`` but no ``source_unit`` is an error too: both
+    would convert (a mapping written before the file had units would convert twice).
     """
     from_file = table.units.get(column)
     if declared == unit_table.RAW:
         return 1.0, 0.0, None
+    if declared is None and from_file is not None and scale != 1.0:
+        raise table.error(
+            f"the file gives the unit {from_file!r} and the mapping a scale {scale:g}: both "
+            f"would convert; drop the scale, or set source_unit: {from_file} (the scale is "
+            "then a calibration after the conversion) or source_unit: raw (scale only)",
+            column=column,
+        )
     if declared is not None and from_file is not None:
         try:
             same = unit_table.normalise(declared) == unit_table.normalise(from_file)
@@ -123,7 +132,9 @@ def unit_conversion(
 def sensor_values(table: LogTable, name: str, spec: SensorSpec) -> np.ndarray:
     """Converted readings [spec.unit], checked finite and within the mapping's range."""
     raw, nonnumeric = numeric(table, spec.column)
-    factor, unit_offset, source = unit_conversion(table, spec.column, spec.source_unit, spec.unit)
+    factor, unit_offset, source = unit_conversion(
+        table, spec.column, spec.source_unit, spec.unit, spec.scale
+    )
     with np.errstate(invalid="ignore", over="ignore"):
         value = spec.convert(raw * factor + unit_offset)
     low, high = spec.range
@@ -143,7 +154,9 @@ def sensor_values(table: LogTable, name: str, spec: SensorSpec) -> np.ndarray:
 def control_values(table: LogTable, name: str, spec: ControlSpec) -> np.ndarray:
     """Normalised control, checked finite and within [-1, 1] (then clipped to it)."""
     raw, nonnumeric = numeric(table, spec.column)
-    factor, unit_offset, source = unit_conversion(table, spec.column, spec.source_unit, "1")
+    factor, unit_offset, source = unit_conversion(
+        table, spec.column, spec.source_unit, "1", spec.scale
+    )
     with np.errstate(invalid="ignore", over="ignore"):
         value = spec.convert(raw * factor + unit_offset)
     outside = np.abs(value) > 1.0 + CONTROL_TOLERANCE

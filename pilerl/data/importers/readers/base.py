@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import units as unit_table
 from ..errors import LogImportError
 from ..mapping import ColumnRequest
 
@@ -54,9 +55,14 @@ class LogTable:
 
 
 def split_unit(header: str) -> tuple[str, str | None]:
-    """``"p_boom [bar]"`` -> ``("p_boom", "bar")``; a header without a unit -> (header, None)."""
+    """``"p_boom [bar]"`` -> ``("p_boom", "bar")``. Only a unit the converter knows counts:
+    ``"Pressure (front)"`` is a name, -> ``("Pressure (front)", None)``."""
     match = _UNIT_SUFFIX.match(header)
     if match and match.group("name").strip():
+        try:
+            unit_table.normalise(match.group("unit"))
+        except unit_table.UnitError:
+            return header, None
         return match.group("name").strip(), match.group("unit").strip()
     return header, None
 

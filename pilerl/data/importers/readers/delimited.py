@@ -58,6 +58,12 @@ def read_delimited(path: Path, mapping: LogMapping, requests: Sequence[ColumnReq
             raise LogImportError(path, "no units row under the header (csv.units_row is true)")
         units_line, unit_cells = body[0]
         body = body[1:]
+        if sum(_is_number(c) for c in unit_cells) > len(unit_cells) // 2:
+            raise LogImportError(
+                path,
+                "csv.units_row is true, but the line under the header holds numbers, not units",
+                line=units_line,
+            )
         for name, i in index.items():
             cell = unit_cells[i].strip() if i < len(unit_cells) else ""
             if cell:
@@ -239,6 +245,14 @@ def _check_widths(
             row=len(body),
             line=body[-1][0],
         )
+
+
+def _is_number(cell: str) -> bool:
+    return bool(
+        _COMMA_NUMBER.match(cell)
+        or _POINT_NUMBER.match(cell)
+        or cell.strip().lstrip("+-").isdigit()
+    )
 
 
 def _sniff_decimal(path: Path, frame: pd.DataFrame, delimiter: str) -> str:
