@@ -111,6 +111,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         reference_ranges=reference,
         reference_name=f"simulator {args.simulator}" if args.simulator else "simulator",
         control_names=store.controls,
+        sensor_units=store.sensors,
     )
     print(f"quality report: {report.path} ({len(report.warnings)} warning(s))")
     for warning in report.warnings:

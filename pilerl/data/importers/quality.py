@@ -173,6 +173,7 @@ def quality_report(
     reference_ranges: Mapping[str, tuple[float, float]] | None = None,
     reference_name: str = "simulator",
     control_names: Sequence[str] | None = None,
+    sensor_units: Mapping[str, str] | None = None,
     plots: bool = True,
 ) -> QualityReport:
     """Measure ``episodes`` and write ``report.md`` + ``episode_<id>.png`` into ``out_dir``.
@@ -185,6 +186,7 @@ def quality_report(
         reference_ranges: sensor -> ``(low, high)`` to compare with (the simulator's).
         reference_name: what the reference ranges are, for the text.
         control_names: names of the action components, for the plots' legend.
+        sensor_units: sensor -> unit, for the plots' axes.
         plots: draw the per-episode plots (needs ``out_dir``).
     """
     names = [_episode_name(e, i) for i, e in enumerate(episodes)]
@@ -200,7 +202,12 @@ def quality_report(
         for episode, quality in zip(episodes, measured, strict=True):
             plot_paths.append(
                 plot_episode(
-                    episode, quality, out / f"{quality.name}.png", reference_ranges, control_names
+                    episode,
+                    quality,
+                    out / f"{quality.name}.png",
+                    reference_ranges,
+                    control_names,
+                    sensor_units,
                 )
             )
     markdown = _markdown(
@@ -365,6 +372,7 @@ def plot_episode(
     path: Path,
     reference_ranges: Mapping[str, tuple[float, float]] | None = None,
     control_names: Sequence[str] | None = None,
+    sensor_units: Mapping[str, str] | None = None,
 ) -> Path:
     """Every sensor and the controls against time; gaps shaded, reference ranges dashed."""
     import matplotlib
@@ -390,7 +398,9 @@ def plot_episode(
     for ax, sensor in zip(axes[:-1], sensors, strict=False):
         values = td[sensor].numpy()[:, 0]
         ax.plot(time_s - t0, values, lw=0.9)
-        ax.set_ylabel(sensor, rotation=0, ha="right", fontsize=8)
+        unit = (sensor_units or {}).get(sensor)
+        label = f"{sensor}\n[{unit}]" if unit else sensor
+        ax.set_ylabel(label, rotation=0, ha="right", va="center", fontsize=8)
         if reference_ranges and sensor in reference_ranges:
             for bound in reference_ranges[sensor]:
                 if np.isfinite(bound):
