@@ -15,7 +15,8 @@ atomically.
 (``import_logs``): the same sensors, actions, times and episode split. ``import_export``
 does that and restores the episode metadata from the sidecar.
 
-Command line: ``python -m pilerl.data.export DATASET OUT.csv|OUT.parquet [--episodes 0 3]``.
+Command line: ``python -m pilerl.data.export DATASET OUT.csv|OUT.parquet [--episodes 0 3]``;
+``--format lerobot`` writes a LeRobot dataset folder instead (``pilerl.data.lerobot``).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from pilerl.io import atomic_path, write_text_atomic
 
 from .importers import (
     ControlSpec,
+    CsvSpec,
     LogMapping,
     MappingError,
     SensorSpec,
@@ -225,6 +227,7 @@ def mapping_for_export(
         controls={name: ControlSpec(column=control_column(name)) for name in controls},
         time=TimeSpec(column="time_s", start_at_zero=False),
         episode_column="episode",
+        csv=CsvSpec(delimiter=",", decimal="."),
     )
 
 
@@ -277,10 +280,21 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("dataset", type=Path, help="dataset directory (has index.json)")
     parser.add_argument("out", type=Path, help="output table: .csv or .parquet")
     parser.add_argument("--episodes", type=int, nargs="+", help="episode ids (default: all)")
+    parser.add_argument(
+        "--format",
+        choices=["csv", "parquet", "lerobot"],
+        help="default: from OUT's extension; lerobot: a LeRobot v3.0 dataset folder",
+    )
     args = parser.parse_args(argv)
     try:
         store = EpisodeStore.open(args.dataset)
-        path = export_episodes(store, args.out, episode_ids=args.episodes)
+        if args.format == "lerobot":
+            from .lerobot import export_lerobot
+
+            path = export_lerobot(store, args.out, episode_ids=args.episodes)
+            print(f"{path}: LeRobot dataset, {len(args.episodes or range(len(store)))} episodes")
+            return
+        path = export_episodes(store, args.out, episode_ids=args.episodes, format=args.format)
     except (OSError, ValueError, IndexError) as error:  # SchemaError is a ValueError
         raise SystemExit(f"error: {error}") from None
     print(
