@@ -86,3 +86,18 @@ def test_a_checkpoint_rewritten_in_place_is_evaluated_with_its_new_weights(datas
     second = evaluate(ActorController(str(path)), plan, workers=1, progress=False)
     assert second[0]["first_lift_s"] != second[0]["first_lift_s"]  # NaN: never lifted
     assert not same_records(first, second)
+
+
+def test_wilson_interval_reaches_zero_and_one_exactly_and_the_plot_accepts_it(tmp_path):
+    from pilerl.evaluation.closed_loop import plot_success
+
+    for trials in range(1, 60):  # 0/5, 0/10, 17/17 ... landed 1e-17 off before
+        assert wilson_interval(0, trials)[0] == 0.0
+        assert wilson_interval(trials, trials)[1] == 1.0
+    summary = {
+        name: {"success_rate": rate, "success_low": low, "success_high": high}
+        | {"successes": s, "episodes": 5}
+        for name, s in (("summer", 0), ("winter_c", 5))
+        for rate, (low, high) in [(s / 5, wilson_interval(s, 5))]
+    }
+    assert plot_success(summary, tmp_path / "success.png").stat().st_size > 0

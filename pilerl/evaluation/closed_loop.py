@@ -146,8 +146,9 @@ def plot_success(summary: dict[str, dict], path: str | Path, *, title: str = "")
     """Success rate per condition (pooled entries hatched) with 95% Wilson intervals."""
     names = list(summary)
     rates = np.array([summary[n]["success_rate"] for n in names])
-    low = rates - np.array([summary[n]["success_low"] for n in names])
-    high = np.array([summary[n]["success_high"] for n in names]) - rates
+    # bar lengths; rounding can put an interval end a hair past the rate (0/5: 2.8e-17)
+    low = np.clip(rates - np.array([summary[n]["success_low"] for n in names]), 0.0, None)
+    high = np.clip(np.array([summary[n]["success_high"] for n in names]) - rates, 0.0, None)
     fig, ax = plt.subplots(figsize=(1.2 + 1.1 * len(names), 3.2))
     bars = ax.bar(names, 100 * rates, yerr=100 * np.vstack([low, high]), capsize=4)
     for bar, name in zip(bars, names, strict=True):
