@@ -16,7 +16,7 @@ Files in ``run_dir``:
 
 | file | what |
 |---|---|
-| ``last.ckpt`` | TorchRL ``Checkpoint`` archive: learner modules, optimisers, RNG, progress |
+| ``last.ckpt`` | verified checkpoint (``run_checkpoint``): learner, optimisers, RNG, progress |
 | ``best.pt`` | actor with the best periodic evaluation (``pilerl.policies.load_actor``); |
 |  | the last actor when ``evaluation.every_frames`` is 0 (no periodic evaluation) |
 | ``final.pt`` | actor after the last update |
@@ -26,10 +26,15 @@ Files in ``run_dir``:
 | ``finetune/`` | TorchRL CSV log of every batch |
 | ``videos/`` | one episode per group at each evaluation (``evaluation.video``) |
 
-Resuming restores weights, optimisers, frames, the curriculum position and the history;
-the simulators restart with a seed derived from the number of batches, so a resumed run
-continues the same training, not a bit-identical replay of an uninterrupted one. TD3+BC's
-replay buffer is not in the checkpoint: a resumed TD3+BC run refills it from new frames.
+Reproducible and resumable bit for bit (``single`` collection): collection runs in
+*segments* of ``checkpoint_every_frames`` (cut at curriculum stages too); each segment
+gets a fresh collector whose simulators are seeded from (``seed``, batches so far), built
+without touching torch's global generator, and ends with ``last.ckpt``. An uninterrupted
+run and one killed and resumed from ``last.ckpt`` therefore start every segment in the same
+state (weights, optimisers, generators, TD3+BC's replay buffer, simulators) and end with
+the same weights. ``last.ckpt`` is read pickle-free and verified (``run_checkpoint``); a
+kill leaves the old or the new one, and the temporary file a kill may leave is removed on
+the next start, as are the CSV log rows written after the checkpoint (no duplicates).
 """
 
 from __future__ import annotations
@@ -42,7 +47,6 @@ from pathlib import Path
 
 import torch
 from tensordict import TensorDictBase
-from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from tqdm import tqdm
 
 from pilerl.data import EpisodeStore
@@ -57,6 +61,7 @@ from .config import FinetuneConfig, PPOConfig, uses_demos, validate_finetune_con
 from .envs import TrainingEnvFactory
 from .evaluation import evaluate_groups, plot_success_curve, pool_groups
 from .ppo import PPOLearner
+from .run_checkpoint import load_run, remove_partial_writes, save_run, set_global_rng_state
 from .td3bc import TD3BCLearner
 
 log = logging.getLogger(__name__)
@@ -66,6 +71,10 @@ BEST_ACTOR = "best.pt"
 FINAL_ACTOR = "final.pt"
 EVAL_ACTOR = "evaluated.pt"  # scratch file the evaluator loads
 RESULTS_FILE = "results.json"
+EVALUATIONS_FILE = "evaluations.json"
+CURVE_FILE = "success_curve.png"
+LOG_NAME = "finetune"  # the CSV logger's folder
+SEGMENT_SEED_STRIDE = 1_000_003  # segment seed = seed * stride + batches so far
 VIDEO_SIZE = (240, 320)  # (height, width) of evaluation videos [px]
 
 
@@ -147,32 +156,40 @@ class _Run:
             "evaluation_s": 0.0,
             "wall_s": 0.0,
         }
-        self.checkpoint = Checkpoint(
-            format="archive",
-            **self.learner.checkpoint_components(),
-            progress=self.state,
-            rng=GlobalRNGState(),
-        )
-        self.logger = make_logger(config.logger.backend, run_dir, experiment_name="finetune")
+        self.logger = make_logger(config.logger.backend, run_dir, experiment_name=LOG_NAME)
 
     # ------------------------------------------------------------------ persistence
     def resume(self) -> bool:
+        """Continue from ``last.ckpt`` if there is one (refusing another run's file)."""
         path = self.run_dir / RUN_CHECKPOINT
+        remove_partial_writes(
+            self.run_dir,
+            [RUN_CHECKPOINT, BEST_ACTOR, FINAL_ACTOR, EVAL_ACTOR, RESULTS_FILE, EVALUATIONS_FILE],
+        )
         if not path.exists():
+            _trim_scalar_logs(self.run_dir / LOG_NAME, after_frames=None)
             return False
+        progress, learner_state, rng_state = load_run(path)
         identity = self.state["identity"]
-        self.checkpoint.load(path)
-        if self.state["identity"] != identity:
+        if progress.get("identity") != identity:
             raise ValueError(
-                f"{path}: was written by a run with {self.state['identity']}, not "
+                f"{path}: was written by a run with {progress.get('identity')}, not "
                 f"{identity}; use a new run directory"
             )
+        self.state = _checked_progress(path, progress, self.state)
+        self.learner.load_state_dict(learner_state, path=path)
+        set_global_rng_state(path, rng_state)
+        _trim_scalar_logs(self.run_dir / LOG_NAME, after_frames=self.state["frames"])
         log.info("resuming %s at %d frames", path, self.state["frames"])
         return True
 
     def save(self) -> None:
-        self.checkpoint.save(self.run_dir / RUN_CHECKPOINT)
         self.state["last_checkpoint_frames"] = self.state["frames"]
+        save_run(
+            self.run_dir / RUN_CHECKPOINT,
+            progress=self.state,
+            learner_state=self.learner.state_dict(),
+        )
 
     # ------------------------------------------------------------------ evaluation
     def _evaluate(
@@ -252,13 +269,13 @@ class _Run:
             boundaries.append(total)
         plot_success_curve(
             self.state["evaluations"],
-            self.run_dir / "success_curve.png",
+            self.run_dir / CURVE_FILE,
             title=f"{self.policy.config.controller} + {self.config.algorithm.name}",
             stage_frames=boundaries,
             confidence=self.config.evaluation.confidence,
         )
         write_text_atomic(
-            self.run_dir / "evaluations.json", json.dumps(self.state["evaluations"], indent=1)
+            self.run_dir / EVALUATIONS_FILE, json.dumps(self.state["evaluations"], indent=1)
         )
 
     # ------------------------------------------------------------------ training
@@ -270,8 +287,9 @@ class _Run:
         budget = self.config.time_budget_minutes
         return budget > 0 and wall_before + time.perf_counter() - started >= 60 * budget
 
-    def _stage_collector(self, conditions: dict[str, float], stage_end: int):
-        """A collector for the rest of one curriculum stage, seeded by the batch count."""
+    def _segment_collector(self, conditions: dict[str, float], segment_end: int):
+        """A fresh collector for the frames up to ``segment_end``, its simulators seeded
+        from the batch count; building it draws nothing from torch's global generator."""
         config = self.config
         factory = TrainingEnvFactory(
             config.env.simulator,
@@ -280,16 +298,17 @@ class _Run:
             config.reward_weights,
             num_envs=config.collection.envs_per_worker,
         )
-        return make_collector(
-            factory,
-            self.learner.collection_policy,
-            frames_per_batch=config.algorithm.frames_per_batch,
-            total_frames=stage_end - self.state["frames"],
-            backend=config.collection.backend,
-            workers=config.collection.workers,
-            seed=config.seed * 1_000_003 + self.state["batches"],
-            ray_init_kwargs=dict(config.collection.ray_init_kwargs),
-        )
+        with torch.random.fork_rng(devices=[]):
+            return make_collector(
+                factory,
+                self.learner.collection_policy,
+                frames_per_batch=config.algorithm.frames_per_batch,
+                total_frames=segment_end - self.state["frames"],
+                backend=config.collection.backend,
+                workers=config.collection.workers,
+                seed=config.seed * SEGMENT_SEED_STRIDE + self.state["batches"],
+                ray_init_kwargs=dict(config.collection.ray_init_kwargs),
+            )
 
     def _learn(self, batch: TensorDictBase, collector) -> None:
         """One update on a collected batch, then the bookkeeping it makes due."""
@@ -307,6 +326,19 @@ class _Run:
         if every and state["frames"] - state["last_eval_frames"] >= every:
             self.evaluate_now()
 
+    def _segments(self):
+        """(conditions, segment end) of the rest of the curriculum: stage by stage, cut
+        every ``checkpoint_every_frames`` from the stage start."""
+        stage_start = 0
+        for stage in self.config.curriculum.stages:
+            stage_end = stage_start + stage.frames
+            end = stage_start
+            while end < stage_end:
+                end = min(stage_end, end + self.config.checkpoint_every_frames)
+                if self.state["frames"] < end:
+                    yield stage.conditions, end
+            stage_start = stage_end
+
     def train(self) -> bool:
         """Run the remaining curriculum; ``False`` if the time budget cut it short."""
         config, state = self.config, self.state
@@ -318,12 +350,11 @@ class _Run:
             unit="frame",
             disable=not self.progress,
         )
-        stage_end, in_time = 0, True
-        for stage in config.curriculum.stages:
-            stage_end += stage.frames
-            if state["frames"] >= stage_end or not in_time:
+        in_time = True
+        for conditions, segment_end in self._segments():
+            if state["frames"] >= segment_end:  # a batch ran past the segment's end
                 continue
-            collector = self._stage_collector(stage.conditions, stage_end)
+            collector = self._segment_collector(conditions, segment_end)
             try:
                 tick = time.perf_counter()
                 for batch in collector:
@@ -331,15 +362,15 @@ class _Run:
                     self._learn(batch, collector)
                     state["wall_s"] = wall_before + time.perf_counter() - started
                     bar.update(batch.numel())
-                    due = state["frames"] - state["last_checkpoint_frames"]
-                    if due >= config.checkpoint_every_frames:
-                        self.save()
                     in_time = not self._out_of_time(started, wall_before)
-                    if not in_time:
+                    if not in_time or state["frames"] >= segment_end:
                         break
                     tick = time.perf_counter()
             finally:
                 collector.shutdown()
+            if not in_time:
+                break
+            self.save()  # the segment's end: a resumed run starts here, as this one does
         bar.close()
         state["wall_s"] = wall_before + time.perf_counter() - started
         if config.evaluation.every_frames and state["last_eval_frames"] != state["frames"]:
@@ -394,6 +425,64 @@ class _Run:
         return metrics
 
 
+def _checked_progress(path: Path, saved: dict, fresh: dict) -> dict:
+    """``saved`` progress if it has the fields of ``fresh`` with sane values."""
+    if set(saved) != set(fresh):
+        raise CheckpointError(
+            f"{path}: progress has fields {sorted(saved)}, expected {sorted(fresh)}"
+        )
+    for name in ("frames", "batches", "last_checkpoint_frames", "last_eval_frames"):
+        value = saved[name]
+        if not isinstance(value, int) or isinstance(value, bool) or value < -1:
+            raise CheckpointError(f"{path}: progress.{name} is {value!r}, not a count")
+    for name in ("collection_s", "update_s", "evaluation_s", "wall_s"):
+        if not isinstance(saved[name], int | float) or saved[name] < 0:
+            raise CheckpointError(f"{path}: progress.{name} is {saved[name]!r}")
+    if not isinstance(saved["evaluations"], list):
+        raise CheckpointError(f"{path}: progress.evaluations is not a list")
+    return saved
+
+
+def _trim_scalar_logs(log_dir: Path, *, after_frames: int | None) -> None:
+    """Drop the CSV log rows a killed run wrote after its last checkpoint (all of them
+    when there is none), so the resumed run does not log those frames twice."""
+    scalars = log_dir / "scalars"
+    if not scalars.is_dir():
+        return
+    for csv in sorted(scalars.glob("*.csv")):
+        lines = csv.read_text().splitlines(keepends=True)
+        kept = [
+            line
+            for line in lines
+            if after_frames is not None
+            and _row_step(line) is not None
+            and _row_step(line) <= after_frames
+        ]
+        if kept != lines:
+            write_text_atomic(csv, "".join(kept))
+
+
+def _row_step(line: str) -> int | None:
+    """The step of a TorchRL CSV row ``step,value`` (``None`` for a torn last line)."""
+    step, _, value = line.partition(",")
+    if not line.endswith("\n") or not value.strip():
+        return None
+    try:
+        return int(step)
+    except ValueError:
+        return None
+
+
+def _check_inputs(config: FinetuneConfig) -> None:
+    """The checkpoint exists; the demonstrations exist if the learner reads them (PPO
+    with the ``frozen_actor`` or no regulariser, and TD3+BC with ``demo_fraction`` 0,
+    need none, whatever ``demos`` says)."""
+    if not Path(config.checkpoint).is_file():
+        raise FileNotFoundError(f"checkpoint: no such actor checkpoint {config.checkpoint!r}")
+    if uses_demos(config) and not Path(config.demos).is_dir():
+        raise FileNotFoundError(f"demos: no such dataset directory {config.demos!r}")
+
+
 def _rates(groups: dict) -> str:
     return ", ".join(
         f"{g} {r['successes']}/{r['episodes']} [{r['success_low']:.2f}, {r['success_high']:.2f}]"
@@ -421,7 +510,8 @@ def finetune(config: FinetuneConfig, run_dir: str | Path, *, progress: bool = Tr
 
     Running again with the same ``run_dir`` resumes from ``last.ckpt``.
     """
-    validate_finetune_config(config)
+    validate_finetune_config(config, inputs_exist=False)
+    _check_inputs(config)
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     run = _Run(config, run_dir, progress=progress)
