@@ -74,6 +74,18 @@ RESULTS_FILE = "results.json"
 EVALUATIONS_FILE = "evaluations.json"
 CURVE_FILE = "success_curve.png"
 LOG_NAME = "finetune"  # the CSV logger's folder
+# every file written atomically in the run directory (also the recipe's sweep markers)
+RUN_FILES = [
+    RUN_CHECKPOINT,
+    BEST_ACTOR,
+    FINAL_ACTOR,
+    EVAL_ACTOR,
+    RESULTS_FILE,
+    EVALUATIONS_FILE,
+    CURVE_FILE,
+    "metrics.json",
+    "done.json",
+]
 SEGMENT_SEED_STRIDE = 1_000_003  # segment seed = seed * stride + batches so far
 VIDEO_SIZE = (240, 320)  # (height, width) of evaluation videos [px]
 
@@ -83,7 +95,7 @@ def load_cloned_actor(checkpoint: str | Path):
     try:
         actor = load_actor(checkpoint)
     except (FileNotFoundError, CheckpointError) as error:
-        raise ValueError(f"checkpoint: {error}") from error
+        raise type(error)(f"checkpoint: {error}") from None
     policy = actor_policy(actor)
     if not getattr(policy.controller, "has_pre_tanh", False):
         raise ValueError(
@@ -162,21 +174,19 @@ class _Run:
     def resume(self) -> bool:
         """Continue from ``last.ckpt`` if there is one (refusing another run's file)."""
         path = self.run_dir / RUN_CHECKPOINT
-        remove_partial_writes(
-            self.run_dir,
-            [RUN_CHECKPOINT, BEST_ACTOR, FINAL_ACTOR, EVAL_ACTOR, RESULTS_FILE, EVALUATIONS_FILE],
-        )
+        remove_partial_writes(self.run_dir, RUN_FILES)
         if not path.exists():
             _trim_scalar_logs(self.run_dir / LOG_NAME, after_frames=None)
             return False
         progress, learner_state, rng_state = load_run(path)
+        progress = _checked_progress(path, progress, self.state)
         identity = self.state["identity"]
-        if progress.get("identity") != identity:
-            raise ValueError(
-                f"{path}: was written by a run with {progress.get('identity')}, not "
+        if progress["identity"] != identity:
+            raise CheckpointError(
+                f"{path}: was written by a run with {progress['identity']}, not "
                 f"{identity}; use a new run directory"
             )
-        self.state = _checked_progress(path, progress, self.state)
+        self.state = progress
         self.learner.load_state_dict(learner_state, path=path)
         set_global_rng_state(path, rng_state)
         _trim_scalar_logs(self.run_dir / LOG_NAME, after_frames=self.state["frames"])
@@ -449,6 +459,8 @@ def _trim_scalar_logs(log_dir: Path, *, after_frames: int | None) -> None:
     scalars = log_dir / "scalars"
     if not scalars.is_dir():
         return
+    for leftover in scalars.glob(".*.csv"):  # a kill during an earlier trim
+        leftover.unlink(missing_ok=True)
     for csv in sorted(scalars.glob("*.csv")):
         lines = csv.read_text().splitlines(keepends=True)
         kept = [
