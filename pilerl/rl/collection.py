@@ -11,10 +11,10 @@ Time is the last batch dimension in every case. The policy runs with
 ``sync_weights(collector)`` so worker processes act with the new weights.
 
 Seeding: the simulators are seeded when they are built (``TrainingEnvFactory.seeded``;
-worker ``k`` gets ``seed + k * envs_per_worker``), not with ``Collector.set_seed``
-afterwards: a TorchRL collector resets its env once while it is built, before any
-``set_seed``, and that first reset decides the first episode. With ``single``, the same
-seed and the same torch RNG state give bit-identical batches.
+worker ``k`` gets ``seed + k * envs_per_worker``): a TorchRL collector resets its env
+once while it is built, before any ``set_seed`` can act, and that first reset decides
+the first episodes. ``restart_collection`` reseeds and resets a running collector. With
+``single``, the same seeds and the same torch RNG state give bit-identical batches.
 """
 
 from __future__ import annotations
@@ -91,3 +91,16 @@ def sync_weights(collector) -> None:
     """Send the policy's current weights to the collector's workers (no-op in-process)."""
     if not isinstance(collector, Collector):
         collector.update_policy_weights_()
+
+
+def restart_collection(collector, seed: int) -> None:
+    """Restart every simulator of ``collector`` from ``seed``: a segment's start.
+
+    ``set_seed`` then ``reset``: afterwards the collector's state depends on ``seed`` only
+    (not on what it collected before), so a collector reused across segments and one
+    built fresh at a segment's start (a resumed run) yield the same batches. Ray's
+    collector has no ``reset``: its simulators take the seeds at their next reset.
+    """
+    collector.set_seed(seed)
+    if hasattr(collector, "reset"):
+        collector.reset()

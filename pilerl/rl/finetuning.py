@@ -28,8 +28,8 @@ Files in ``run_dir``:
 
 Reproducible and resumable bit for bit (``single`` collection): collection runs in
 *segments* of ``checkpoint_every_frames`` (cut at curriculum stages too); each segment
-gets a fresh collector whose simulators are seeded from (``seed``, batches so far), built
-without touching torch's global generator, and ends with ``last.ckpt``. An uninterrupted
+restarts the simulators from a seed derived from (``seed``, batches so far) and ends with
+``last.ckpt``; collectors are built without drawing from torch's global generator. An uninterrupted
 run and one killed and resumed from ``last.ckpt`` therefore start every segment in the same
 state (weights, optimisers, generators, TD3+BC's replay buffer, simulators) and end with
 the same weights. ``last.ckpt`` is read pickle-free and verified (``run_checkpoint``); a
@@ -56,7 +56,7 @@ from pilerl.io import write_text_atomic
 from pilerl.loggers import make_logger
 from pilerl.policies import CheckpointError, actor_policy, load_actor, save_actor
 
-from .collection import make_collector, sync_weights
+from .collection import make_collector, restart_collection, sync_weights
 from .config import FinetuneConfig, PPOConfig, uses_demos, validate_finetune_config
 from .envs import TrainingEnvFactory
 from .evaluation import evaluate_groups, plot_success_curve, pool_groups
@@ -297,9 +297,9 @@ class _Run:
         budget = self.config.time_budget_minutes
         return budget > 0 and wall_before + time.perf_counter() - started >= 60 * budget
 
-    def _segment_collector(self, conditions: dict[str, float], segment_end: int):
-        """A fresh collector for the frames up to ``segment_end``, its simulators seeded
-        from the batch count; building it draws nothing from torch's global generator."""
+    def _stage_collector(self, conditions: dict[str, float], stage_end: int):
+        """A collector for the rest of a curriculum stage; building it draws nothing from
+        torch's global generator (``_start_segment`` seeds it)."""
         config = self.config
         factory = TrainingEnvFactory(
             config.env.simulator,
@@ -313,12 +313,20 @@ class _Run:
                 factory,
                 self.learner.collection_policy,
                 frames_per_batch=config.algorithm.frames_per_batch,
-                total_frames=segment_end - self.state["frames"],
+                total_frames=stage_end - self.state["frames"],
                 backend=config.collection.backend,
                 workers=config.collection.workers,
-                seed=config.seed * SEGMENT_SEED_STRIDE + self.state["batches"],
+                seed=self._segment_seed(),
                 ray_init_kwargs=dict(config.collection.ray_init_kwargs),
             )
+
+    def _segment_seed(self) -> int:
+        return self.config.seed * SEGMENT_SEED_STRIDE + self.state["batches"]
+
+    def _start_segment(self, collector) -> None:
+        """Restart the simulators from the segment's seed (as a resumed run starts)."""
+        with torch.random.fork_rng(devices=[]):
+            restart_collection(collector, self._segment_seed())
 
     def _learn(self, batch: TensorDictBase, collector) -> None:
         """One update on a collected batch, then the bookkeeping it makes due."""
@@ -336,21 +344,27 @@ class _Run:
         if every and state["frames"] - state["last_eval_frames"] >= every:
             self.evaluate_now()
 
-    def _segments(self):
-        """(conditions, segment end) of the rest of the curriculum: stage by stage, cut
-        every ``checkpoint_every_frames`` from the stage start."""
-        stage_start = 0
-        for stage in self.config.curriculum.stages:
+    def _segments(self) -> list[tuple[int, dict[str, float], int, int]]:
+        """(stage index, conditions, stage end, segment end) of the rest of the
+        curriculum: each stage cut every ``checkpoint_every_frames`` from its start."""
+        segments, stage_start = [], 0
+        for index, stage in enumerate(self.config.curriculum.stages):
             stage_end = stage_start + stage.frames
             end = stage_start
             while end < stage_end:
                 end = min(stage_end, end + self.config.checkpoint_every_frames)
                 if self.state["frames"] < end:
-                    yield stage.conditions, end
+                    segments.append((index, stage.conditions, stage_end, end))
             stage_start = stage_end
+        return segments
 
     def train(self) -> bool:
-        """Run the remaining curriculum; ``False`` if the time budget cut it short."""
+        """Run the remaining curriculum; ``False`` if the time budget cut it short.
+
+        Segment by segment: restart the simulators from the segment's seed, collect and
+        learn up to its end, write ``last.ckpt`` (the last segment's after the final
+        evaluation). A resumed run starts at a segment start like this one did.
+        """
         config, state = self.config, self.state
         started, wall_before = time.perf_counter(), state["wall_s"]
         bar = tqdm(
@@ -360,12 +374,18 @@ class _Run:
             unit="frame",
             disable=not self.progress,
         )
-        in_time = True
-        for conditions, segment_end in self._segments():
-            if state["frames"] >= segment_end:  # a batch ran past the segment's end
-                continue
-            collector = self._segment_collector(conditions, segment_end)
-            try:
+        in_time, collector, collector_stage = True, None, None
+        segments = self._segments()
+        try:
+            for index, (stage, conditions, stage_end, segment_end) in enumerate(segments):
+                if state["frames"] >= segment_end:  # a batch ran past the segment's end
+                    continue
+                if stage != collector_stage:
+                    if collector is not None:
+                        collector.shutdown()
+                    collector = self._stage_collector(conditions, stage_end)
+                    collector_stage = stage
+                self._start_segment(collector)
                 tick = time.perf_counter()
                 for batch in collector:
                     state["collection_s"] += time.perf_counter() - tick
@@ -376,11 +396,13 @@ class _Run:
                     if not in_time or state["frames"] >= segment_end:
                         break
                     tick = time.perf_counter()
-            finally:
+                if not in_time:
+                    break
+                if index < len(segments) - 1:  # the last: saved after the evaluation below
+                    self.save()
+        finally:
+            if collector is not None:
                 collector.shutdown()
-            if not in_time:
-                break
-            self.save()  # the segment's end: a resumed run starts here, as this one does
         bar.close()
         state["wall_s"] = wall_before + time.perf_counter() - started
         if config.evaluation.every_frames and state["last_eval_frames"] != state["frames"]:
