@@ -97,6 +97,14 @@ def test_a_bit_flip_in_best_pt_is_refused(base_files, tmp_path):
         load_actor(tmp_path / "best.pt")
 
 
+def test_a_version_1_actor_without_digest_still_loads(base_files, tmp_path):
+    payload = torch.load(base_files["nnet"], weights_only=True)
+    payload.pop("sha256")
+    payload["version"] = 1
+    torch.save(payload, tmp_path / "old.pt")
+    assert same_actor(base_files["nnet"])(load_actor(tmp_path / "old.pt"))
+
+
 @pytest.mark.parametrize("value", [float("nan"), float("inf")])
 def test_non_finite_weights_are_refused(base_files, tmp_path, value):
     payload = torch.load(base_files["nnet"], weights_only=True)

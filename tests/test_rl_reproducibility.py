@@ -154,3 +154,14 @@ def test_killed_td3bc_run_resumes_exactly_with_its_replay_buffer(cloned, tmp_pat
     assert learner_state["updates"] == 8
     finetune(config, tmp_path / "killed", progress=False)
     assert_same_weights(final_weights(tmp_path / "killed"), final_weights(tmp_path / "reference"))
+
+
+@pytest.mark.slow
+def test_multiprocess_collection_restarts_its_workers_at_each_segment(cloned, tmp_path):
+    """Two worker processes, a checkpoint every 2 batches: segments reseed and reset them."""
+    config = tiny_run_config(cloned, tiny_ppo())
+    config.collection = CollectionConfig(backend="multiprocess", workers=2, envs_per_worker=1)
+    results = finetune(config, tmp_path, progress=False)
+    assert results["frames"] == FRAMES and results["batches"] == 4
+    _, learner_state, _ = load_run(tmp_path / RUN_CHECKPOINT)
+    assert learner_state["optimizer"]["state"], "no update was made"

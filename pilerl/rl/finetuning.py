@@ -344,19 +344,18 @@ class _Run:
         if every and state["frames"] - state["last_eval_frames"] >= every:
             self.evaluate_now()
 
-    def _segments(self) -> list[tuple[int, dict[str, float], int, int]]:
-        """(stage index, conditions, stage end, segment end) of the rest of the
-        curriculum: each stage cut every ``checkpoint_every_frames`` from its start."""
-        segments, stage_start = [], 0
-        for index, stage in enumerate(self.config.curriculum.stages):
+    def _pending_stages(self) -> list[tuple[dict[str, float], int, list[int]]]:
+        """(conditions, stage end, segment ends still ahead) of the rest of the
+        curriculum: each stage is cut every ``checkpoint_every_frames`` from its start."""
+        pending, stage_start, every = [], 0, self.config.checkpoint_every_frames
+        for stage in self.config.curriculum.stages:
             stage_end = stage_start + stage.frames
-            end = stage_start
-            while end < stage_end:
-                end = min(stage_end, end + self.config.checkpoint_every_frames)
-                if self.state["frames"] < end:
-                    segments.append((index, stage.conditions, stage_end, end))
+            ends = range(stage_start + every, stage_end, every)
+            ahead = [end for end in [*ends, stage_end] if end > self.state["frames"]]
+            if ahead:
+                pending.append((stage.conditions, stage_end, ahead))
             stage_start = stage_end
-        return segments
+        return pending
 
     def train(self) -> bool:
         """Run the remaining curriculum; ``False`` if the time budget cut it short.
@@ -374,17 +373,11 @@ class _Run:
             unit="frame",
             disable=not self.progress,
         )
-        in_time, collector, collector_stage = True, None, None
-        segments = self._segments()
-        try:
-            for index, (stage, conditions, stage_end, segment_end) in enumerate(segments):
-                if state["frames"] >= segment_end:  # a batch ran past the segment's end
-                    continue
-                if stage != collector_stage:
-                    if collector is not None:
-                        collector.shutdown()
-                    collector = self._stage_collector(conditions, stage_end)
-                    collector_stage = stage
+        in_time = True
+        pending = self._pending_stages()
+        for stage_index, (conditions, stage_end, segment_ends) in enumerate(pending):
+            collector = self._stage_collector(conditions, stage_end)
+            try:
                 self._start_segment(collector)
                 tick = time.perf_counter()
                 for batch in collector:
@@ -393,16 +386,21 @@ class _Run:
                     state["wall_s"] = wall_before + time.perf_counter() - started
                     bar.update(batch.numel())
                     in_time = not self._out_of_time(started, wall_before)
-                    if not in_time or state["frames"] >= segment_end:
+                    if not in_time:
                         break
+                    if segment_ends and state["frames"] >= segment_ends[0]:  # a segment ends
+                        while segment_ends and segment_ends[0] <= state["frames"]:
+                            segment_ends.pop(0)
+                        last = not segment_ends and stage_index == len(pending) - 1
+                        if not last:  # the last is saved after the final evaluation
+                            self.save()
+                        if segment_ends:
+                            self._start_segment(collector)
                     tick = time.perf_counter()
-                if not in_time:
-                    break
-                if index < len(segments) - 1:  # the last: saved after the evaluation below
-                    self.save()
-        finally:
-            if collector is not None:
+            finally:
                 collector.shutdown()
+            if not in_time:
+                break
         bar.close()
         state["wall_s"] = wall_before + time.perf_counter() - started
         if config.evaluation.every_frames and state["last_eval_frames"] != state["frames"]:
