@@ -9,7 +9,9 @@ a case is clean when the file is refused with ``CheckpointError`` naming it, or 
 identical to the original. Then ``--rounds`` times: the finetune recipe (tiny budget) is
 SIGKILLed ``--kills`` times at seeded random moments (each kill is clean when
 ``last.ckpt`` is absent or whole afterwards), then run to the end (clean when its final
-weights equal an uninterrupted run's, with no temporary files and no repeated log rows).
+weights equal an uninterrupted run's, with no temporary files and no repeated log rows;
+temporary files and a torn log row, as a kill during a write leaves them, are planted
+before it).
 Prints ``test | cases | clean | defects`` and the defects found.
 """
 
@@ -43,6 +45,7 @@ from checkpoint_cases import (  # noqa: E402
 from test_checkpoint_safety import (  # noqa: E402
     assert_run_matches,
     kill_recipe_at_random_moments,
+    plant_interrupted_writes,
     recipe_command,
     reference_run,
 )
@@ -97,6 +100,7 @@ def kill_rows(root: Path, kills: int, rounds: int) -> list[tuple[str, int, int, 
         except Exception as error:  # noqa: BLE001 - a broken last.ckpt is the defect counted
             kill_defects.append(f"kill left {type(error).__name__}: {error}")
             continue
+        plant_interrupted_writes(run_dir)
         result = subprocess.run(
             recipe_command(checkpoint, run_dir), capture_output=True, text=True, timeout=600
         )

@@ -258,7 +258,8 @@ def kill_recipe_at_random_moments(
 ) -> list[str]:
     """Start the recipe, SIGKILL it a random time after its main() began (``.hydra``
     written), ``kills`` times; after each kill ``last.ckpt`` must be absent or whole.
-    Returns what each kill left (``none`` / ``whole`` / ``finished``)."""
+    Returns what each kill left: ``none`` / ``whole`` / ``finished``, with ``+temp`` when
+    it interrupted a write (its temporary file left behind)."""
     rng = random.Random(seed)
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MUJOCO_GL": "egl"}
     left = []
@@ -283,7 +284,8 @@ def kill_recipe_at_random_moments(
         checkpoint_file = run_dir / RUN_CHECKPOINT
         if checkpoint_file.exists():
             load_run(checkpoint_file)  # raises CheckpointError if the kill broke it
-        left.append("finished" if finished else "whole" if checkpoint_file.exists() else "none")
+        state = "finished" if finished else "whole" if checkpoint_file.exists() else "none"
+        left.append(state + ("+temp" if any(run_dir.glob(".last.*.ckpt")) else ""))
     return left
 
 
@@ -293,6 +295,7 @@ def test_finetune_recipe_killed_at_random_moments_resumes_to_the_same_weights(ba
     kill_recipe_at_random_moments(
         base_files["nnet"], run_dir, kills=KILLS, seed=KILL_SEED, run_s=run_s
     )
+    plant_interrupted_writes(run_dir)
     result = subprocess.run(
         recipe_command(base_files["nnet"], run_dir),
         capture_output=True,
@@ -302,6 +305,20 @@ def test_finetune_recipe_killed_at_random_moments_resumes_to_the_same_weights(ba
     )
     assert result.returncode == 0, result.stderr[-3000:]
     assert_run_matches(run_dir, tmp_path / "reference")
+
+
+def plant_interrupted_writes(run_dir: Path) -> None:
+    """What a kill in the middle of writing leaves (a write takes about a millisecond
+    here, so random kills rarely land in one): temporary files of ``atomic_path`` with
+    half their bytes, and a torn last CSV row."""
+    if (run_dir / RUN_CHECKPOINT).exists():
+        data = (run_dir / RUN_CHECKPOINT).read_bytes()
+        (run_dir / ".last.k1ll3d.ckpt").write_bytes(data[: len(data) // 2])
+    (run_dir / ".best.k1ll3d.pt").write_bytes(b"PK\x03\x04 half a zip")
+    for csv in (run_dir / "finetune" / "scalars").glob("*.csv"):
+        with csv.open("a") as log:
+            log.write("99999999,0.")  # no newline: the kill came mid-row
+        break
 
 
 def assert_run_matches(run_dir: Path, reference_dir: Path) -> None:
