@@ -82,6 +82,8 @@ def save_actor(path: str | Path, actor: TensorDictModule | SensorPolicy) -> Path
 def load_actor(path: str | Path) -> TensorDictModule:
     """Rebuild a saved actor on the CPU, in eval mode (``.train()`` it to fine-tune)."""
     path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such actor checkpoint")
     payload = read_checkpoint(
         path,
         expected_format=CHECKPOINT_FORMAT,
