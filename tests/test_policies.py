@@ -35,6 +35,7 @@ from pilerl.policies import (
     save_actor,
 )
 from pilerl.policies.checkpoint import CHECKPOINT_FORMAT, CHECKPOINT_VERSION
+from pilerl.policies.checkpoint_file import write_checkpoint
 
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
 EXTRA_ATTENTION = ["boom_pressure", "bucket_pressure", "pump_angle"]
@@ -473,7 +474,8 @@ def test_load_refuses_corrupt_foreign_and_malicious_files(tmp_path: pathlib.Path
     config = json.loads(payload["config"])
     config["controller"] = "nnet"
     payload["config"] = json.dumps(config)
-    torch.save(payload, mismatched)
+    payload.pop("sha256")
+    write_checkpoint(mismatched, payload)  # a consistent file whose weights do not fit
     with pytest.raises(CheckpointError, match="do not fit a 'nnet' actor"):
         load_actor(mismatched)
 

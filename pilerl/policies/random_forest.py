@@ -25,8 +25,17 @@ from .controllers import Controller, ControllerOutput
 
 N_ESTIMATORS = 20  # Yang et al. 2020 / revised paper
 MAX_DEPTH = 30
+MAX_TREE_DEPTH = 512  # a loaded forest deeper than this is refused (acting loops per level)
 SEED = 0
 TREE_BUFFERS = ("children_left", "children_right", "feature", "threshold", "value")
+TREE_DTYPES = {
+    "children_left": torch.int32,
+    "children_right": torch.int32,
+    "feature": torch.int32,
+    "threshold": torch.float64,
+    "value": torch.float32,
+    "depth": torch.int64,
+}
 
 
 class RandomForestController(Controller):
@@ -140,14 +149,93 @@ class RandomForestController(Controller):
         action = leaves.mean(1).clamp(-1.0, 1.0).to(s.dtype)
         return ControllerOutput(action.reshape(*batch_shape, self.n_controls))
 
-    def _load_from_state_dict(self, state_dict, prefix, *args, **kwargs) -> None:
-        # the forest's size is known only from the checkpoint: resize before copying
-        for name in TREE_BUFFERS:
-            saved = state_dict.get(prefix + name)
-            if saved is not None:
-                setattr(self, name, torch.empty_like(saved, dtype=getattr(self, name).dtype))
-        super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
+    def _load_from_state_dict(
+        self, state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys, errors
+    ) -> None:
+        # the forest's size is known only from the checkpoint: check its trees, then
+        # resize the buffers before copying
+        saved = {name: state_dict.get(prefix + name) for name in (*TREE_BUFFERS, "depth")}
+        if all(isinstance(t, torch.Tensor) for t in saved.values()):
+            try:
+                check_forest(saved, n_inputs=self.n_inputs, n_controls=self.n_controls)
+            except ValueError as error:
+                errors.append(f"random forest: {error}")
+                return
+            for name in TREE_BUFFERS:
+                setattr(self, name, torch.empty_like(saved[name], device="cpu"))
+        super()._load_from_state_dict(
+            state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys, errors
+        )
 
     def extra_repr(self) -> str:
         size = f"{self.threshold.shape[0]} trees" if self.fitted else "not fitted"
         return f"n_inputs={self.n_inputs}, n_controls={self.n_controls}, {size}"
+
+
+def check_forest(buffers: dict[str, torch.Tensor], *, n_inputs: int, n_controls: int) -> None:
+    """Raise ``ValueError`` unless ``buffers`` (a saved forest) are trees that acting can use.
+
+    Checks dtypes and shapes ([T, N] for children, feature and threshold, [T, N, n_u] for
+    value, [] for depth), child indices within [0, N), split features within
+    [0, n_inputs), that each tree seen from its root is a tree (every internal node has
+    two children other than itself, no node is reached twice: no cycle), and that the
+    saved ``depth`` (the number of steps ``forward`` takes) is the trees' real depth, at
+    most ``MAX_TREE_DEPTH``. The walk is level by level, O(T * N).
+    """
+    for name, dtype in TREE_DTYPES.items():
+        if buffers[name].dtype != dtype:
+            raise ValueError(f"{name} is {buffers[name].dtype}, expected {dtype}")
+    left, right = buffers["children_left"], buffers["children_right"]
+    if left.dim() != 2:
+        raise ValueError(f"children_left has shape {tuple(left.shape)}, expected [trees, nodes]")
+    n_trees, n_nodes = left.shape
+    for name in ("children_right", "feature", "threshold"):
+        if buffers[name].shape != left.shape:
+            raise ValueError(
+                f"{name} has shape {tuple(buffers[name].shape)}, not {tuple(left.shape)}"
+            )
+    if buffers["value"].shape != (n_trees, n_nodes, n_controls):
+        raise ValueError(
+            f"value has shape {tuple(buffers['value'].shape)}, expected "
+            f"{(n_trees, n_nodes, n_controls)}"
+        )
+    if buffers["depth"].dim() != 0:
+        raise ValueError("depth is not a scalar")
+    depth = int(buffers["depth"])
+    if n_trees == 0 or n_nodes == 0:
+        if depth != 0:
+            raise ValueError(f"an empty forest with depth {depth}")
+        return
+    left, right = left.numpy().astype(np.int64), right.numpy().astype(np.int64)
+    feature = buffers["feature"].numpy()
+    for name, index, bound in (
+        ("children_left", left, n_nodes),
+        ("children_right", right, n_nodes),
+        ("feature", feature, n_inputs),
+    ):
+        if index.min() < 0 or index.max() >= bound:
+            raise ValueError(f"{name} holds indices outside [0, {bound})")
+    own = np.arange(n_nodes)
+    leaf = (left == own) & (right == own)
+    split = ~leaf
+    if ((left == own) | (right == own) | (left == right))[split].any():
+        raise ValueError("a split node points to itself or twice to one child")
+    reached = np.zeros((n_trees, n_nodes), dtype=bool)
+    trees, nodes = np.arange(n_trees), np.zeros(n_trees, dtype=np.int64)
+    levels = 0
+    while True:
+        if reached[trees, nodes].any() or len(np.unique(trees * n_nodes + nodes)) < len(nodes):
+            raise ValueError("a node is reached twice: the trees have a cycle or shared nodes")
+        reached[trees, nodes] = True
+        inner = split[trees, nodes]
+        if not inner.any():
+            break
+        levels += 1
+        if levels > MAX_TREE_DEPTH:
+            raise ValueError(f"a tree is deeper than {MAX_TREE_DEPTH} levels")
+        trees, nodes = (
+            np.concatenate([trees[inner], trees[inner]]),
+            np.concatenate([left[trees[inner], nodes[inner]], right[trees[inner], nodes[inner]]]),
+        )
+    if depth != levels:
+        raise ValueError(f"depth is {depth}, but the deepest tree has {levels} levels")

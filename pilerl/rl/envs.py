@@ -7,8 +7,9 @@ reward is the weighted sum of the named reward parts the simulator reports in ``
 (``GymWrapper``) and copies ``success`` and the reward parts from ``info`` into every
 step's tensordict, so a collected batch tells how training episodes went.
 
-The condition is drawn from the env's own generator, seeded at the first reset, so a
-seeded collector replays the same conditions and starts.
+The condition is drawn from the env's own generator. It is seeded when the env is built
+(``seed``), so the very first reset, which TorchRL collectors make before they can be
+seeded, is already reproducible: the same seed replays the same conditions and starts.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from collections.abc import Mapping
 import gymnasium as gym
 import numpy as np
 import torch
+from gymnasium.utils import seeding
 from torchrl.data import Unbounded
 from torchrl.envs import GymWrapper, default_info_dict_reader
 
@@ -38,6 +40,8 @@ class ConditionMixtureEnv(gym.Env):
         conditions: condition name -> relative weight (>= 0, not all zero).
         reward_weights: reward part name (an ``info`` key) -> multiplier; the reward is
             ``sum(weight * info[part])``.
+        seed: seeds the generator of conditions and starts (``None``: OS entropy, until a
+            ``reset(seed=...)``).
     """
 
     metadata = {"render_modes": ["rgb_array"]}
@@ -48,8 +52,12 @@ class ConditionMixtureEnv(gym.Env):
         env_kwargs: Mapping[str, object],
         conditions: Mapping[str, float],
         reward_weights: Mapping[str, float],
+        *,
+        seed: int | None = None,
     ) -> None:
         super().__init__()
+        if seed is not None:
+            self._np_random, self._np_random_seed = seeding.np_random(seed)
         if not conditions:
             raise ValueError("ConditionMixtureEnv: conditions is empty")
         weights = np.array([float(w) for w in conditions.values()])
@@ -132,8 +140,11 @@ def make_training_env(
     reward_weights: Mapping[str, float],
     *,
     num_envs: int = 1,
+    seed: int | None = None,
 ):
     """A TorchRL env around ``num_envs`` ``ConditionMixtureEnv`` simulators.
+
+    Simulator ``i`` is seeded with ``seed + i`` when it is built (``None``: unseeded).
 
     - ``num_envs=1``: ``GymWrapper``, batch size ``[]``. Each step's tensordict carries the
       sensors by name, ``reward`` (the weighted parts) and, from ``info``, ``success``,
@@ -142,12 +153,20 @@ def make_training_env(
       simulators stepped in a loop, TorchRL's per-step cost and the actor's forward pass
       paid once for all N (much faster on CPU); sensors, reward and end flags only.
     """
-    if num_envs > 1:
-        return SimulatorBatchEnv(
-            lambda: ConditionMixtureEnv(simulator, env_kwargs, conditions, reward_weights),
-            num_envs,
+    seeds = iter(range(seed, seed + num_envs)) if seed is not None else None
+
+    def make_mixture() -> ConditionMixtureEnv:
+        return ConditionMixtureEnv(
+            simulator,
+            env_kwargs,
+            conditions,
+            reward_weights,
+            seed=None if seeds is None else next(seeds),
         )
-    mixture = ConditionMixtureEnv(simulator, env_kwargs, conditions, reward_weights)
+
+    if num_envs > 1:
+        return SimulatorBatchEnv(make_mixture, num_envs)
+    mixture = make_mixture()
     env = GymWrapper(mixture)
     keys = info_keys(reward_weights)
     reader = default_info_dict_reader(
@@ -158,7 +177,11 @@ def make_training_env(
 
 
 class TrainingEnvFactory:
-    """A picklable ``create_env_fn`` for collectors (also in worker processes)."""
+    """A picklable ``create_env_fn`` for collectors (also in worker processes).
+
+    ``seed`` seeds the simulators it builds (``make_training_env``); ``seeded(s)`` is the
+    same factory with another seed (one per collector worker).
+    """
 
     def __init__(
         self,
@@ -168,12 +191,25 @@ class TrainingEnvFactory:
         reward_weights: Mapping[str, float],
         *,
         num_envs: int = 1,
+        seed: int | None = None,
     ) -> None:
         self.simulator = simulator
         self.env_kwargs = dict(env_kwargs)
         self.conditions = dict(conditions)
         self.reward_weights = dict(reward_weights)
         self.num_envs = num_envs
+        self.seed = seed
+
+    def seeded(self, seed: int | None) -> TrainingEnvFactory:
+        """This factory building simulators seeded from ``seed``."""
+        return TrainingEnvFactory(
+            self.simulator,
+            self.env_kwargs,
+            self.conditions,
+            self.reward_weights,
+            num_envs=self.num_envs,
+            seed=seed,
+        )
 
     def __call__(self):
         return make_training_env(
@@ -182,4 +218,5 @@ class TrainingEnvFactory:
             self.conditions,
             self.reward_weights,
             num_envs=self.num_envs,
+            seed=self.seed,
         )

@@ -16,7 +16,7 @@ Files in ``run_dir``:
 
 | file | what |
 |---|---|
-| ``last.ckpt`` | TorchRL ``Checkpoint`` archive: learner modules, optimisers, RNG, progress |
+| ``last.ckpt`` | verified checkpoint (``run_checkpoint``): learner, optimisers, RNG, progress |
 | ``best.pt`` | actor with the best periodic evaluation (``pilerl.policies.load_actor``); |
 |  | the last actor when ``evaluation.every_frames`` is 0 (no periodic evaluation) |
 | ``final.pt`` | actor after the last update |
@@ -26,10 +26,15 @@ Files in ``run_dir``:
 | ``finetune/`` | TorchRL CSV log of every batch |
 | ``videos/`` | one episode per group at each evaluation (``evaluation.video``) |
 
-Resuming restores weights, optimisers, frames, the curriculum position and the history;
-the simulators restart with a seed derived from the number of batches, so a resumed run
-continues the same training, not a bit-identical replay of an uninterrupted one. TD3+BC's
-replay buffer is not in the checkpoint: a resumed TD3+BC run refills it from new frames.
+Reproducible and resumable bit for bit (``single`` collection): collection runs in
+*segments* of ``checkpoint_every_frames`` (cut at curriculum stages too); each segment
+restarts the simulators from a seed derived from (``seed``, batches so far) and ends with
+``last.ckpt``; collectors are built without drawing from torch's global generator. An uninterrupted
+run and one killed and resumed from ``last.ckpt`` therefore start every segment in the same
+state (weights, optimisers, generators, TD3+BC's replay buffer, simulators) and end with
+the same weights. ``last.ckpt`` is read pickle-free and verified (``run_checkpoint``); a
+kill leaves the old or the new one, and the temporary file a kill may leave is removed on
+the next start, as are the CSV log rows written after the checkpoint (no duplicates).
 """
 
 from __future__ import annotations
@@ -42,7 +47,6 @@ from pathlib import Path
 
 import torch
 from tensordict import TensorDictBase
-from torchrl.checkpoint import Checkpoint, GlobalRNGState
 from tqdm import tqdm
 
 from pilerl.data import EpisodeStore
@@ -52,11 +56,12 @@ from pilerl.io import write_text_atomic
 from pilerl.loggers import make_logger
 from pilerl.policies import CheckpointError, actor_policy, load_actor, save_actor
 
-from .collection import make_collector, sync_weights
+from .collection import make_collector, restart_collection, sync_weights
 from .config import FinetuneConfig, PPOConfig, uses_demos, validate_finetune_config
 from .envs import TrainingEnvFactory
 from .evaluation import evaluate_groups, plot_success_curve, pool_groups
 from .ppo import PPOLearner
+from .run_checkpoint import load_run, remove_partial_writes, save_run, set_global_rng_state
 from .td3bc import TD3BCLearner
 
 log = logging.getLogger(__name__)
@@ -66,6 +71,22 @@ BEST_ACTOR = "best.pt"
 FINAL_ACTOR = "final.pt"
 EVAL_ACTOR = "evaluated.pt"  # scratch file the evaluator loads
 RESULTS_FILE = "results.json"
+EVALUATIONS_FILE = "evaluations.json"
+CURVE_FILE = "success_curve.png"
+LOG_NAME = "finetune"  # the CSV logger's folder
+# every file written atomically in the run directory (also the recipe's sweep markers)
+RUN_FILES = [
+    RUN_CHECKPOINT,
+    BEST_ACTOR,
+    FINAL_ACTOR,
+    EVAL_ACTOR,
+    RESULTS_FILE,
+    EVALUATIONS_FILE,
+    CURVE_FILE,
+    "metrics.json",
+    "done.json",
+]
+SEGMENT_SEED_STRIDE = 1_000_003  # segment seed = seed * stride + batches so far
 VIDEO_SIZE = (240, 320)  # (height, width) of evaluation videos [px]
 
 
@@ -74,7 +95,7 @@ def load_cloned_actor(checkpoint: str | Path):
     try:
         actor = load_actor(checkpoint)
     except (FileNotFoundError, CheckpointError) as error:
-        raise ValueError(f"checkpoint: {error}") from error
+        raise type(error)(f"checkpoint: {error}") from None
     policy = actor_policy(actor)
     if not getattr(policy.controller, "has_pre_tanh", False):
         raise ValueError(
@@ -147,32 +168,38 @@ class _Run:
             "evaluation_s": 0.0,
             "wall_s": 0.0,
         }
-        self.checkpoint = Checkpoint(
-            format="archive",
-            **self.learner.checkpoint_components(),
-            progress=self.state,
-            rng=GlobalRNGState(),
-        )
-        self.logger = make_logger(config.logger.backend, run_dir, experiment_name="finetune")
+        self.logger = make_logger(config.logger.backend, run_dir, experiment_name=LOG_NAME)
 
     # ------------------------------------------------------------------ persistence
     def resume(self) -> bool:
+        """Continue from ``last.ckpt`` if there is one (refusing another run's file)."""
         path = self.run_dir / RUN_CHECKPOINT
+        remove_partial_writes(self.run_dir, RUN_FILES)
         if not path.exists():
+            _trim_scalar_logs(self.run_dir / LOG_NAME, after_frames=None)
             return False
+        progress, learner_state, rng_state = load_run(path)
+        progress = _checked_progress(path, progress, self.state)
         identity = self.state["identity"]
-        self.checkpoint.load(path)
-        if self.state["identity"] != identity:
-            raise ValueError(
-                f"{path}: was written by a run with {self.state['identity']}, not "
+        if progress["identity"] != identity:
+            raise CheckpointError(
+                f"{path}: was written by a run with {progress['identity']}, not "
                 f"{identity}; use a new run directory"
             )
+        self.state = progress
+        self.learner.load_state_dict(learner_state, path=path)
+        set_global_rng_state(path, rng_state)
+        _trim_scalar_logs(self.run_dir / LOG_NAME, after_frames=self.state["frames"])
         log.info("resuming %s at %d frames", path, self.state["frames"])
         return True
 
     def save(self) -> None:
-        self.checkpoint.save(self.run_dir / RUN_CHECKPOINT)
         self.state["last_checkpoint_frames"] = self.state["frames"]
+        save_run(
+            self.run_dir / RUN_CHECKPOINT,
+            progress=self.state,
+            learner_state=self.learner.state_dict(),
+        )
 
     # ------------------------------------------------------------------ evaluation
     def _evaluate(
@@ -252,13 +279,13 @@ class _Run:
             boundaries.append(total)
         plot_success_curve(
             self.state["evaluations"],
-            self.run_dir / "success_curve.png",
+            self.run_dir / CURVE_FILE,
             title=f"{self.policy.config.controller} + {self.config.algorithm.name}",
             stage_frames=boundaries,
             confidence=self.config.evaluation.confidence,
         )
         write_text_atomic(
-            self.run_dir / "evaluations.json", json.dumps(self.state["evaluations"], indent=1)
+            self.run_dir / EVALUATIONS_FILE, json.dumps(self.state["evaluations"], indent=1)
         )
 
     # ------------------------------------------------------------------ training
@@ -271,7 +298,8 @@ class _Run:
         return budget > 0 and wall_before + time.perf_counter() - started >= 60 * budget
 
     def _stage_collector(self, conditions: dict[str, float], stage_end: int):
-        """A collector for the rest of one curriculum stage, seeded by the batch count."""
+        """A collector for the rest of a curriculum stage; building it draws nothing from
+        torch's global generator (``_start_segment`` seeds it)."""
         config = self.config
         factory = TrainingEnvFactory(
             config.env.simulator,
@@ -280,16 +308,25 @@ class _Run:
             config.reward_weights,
             num_envs=config.collection.envs_per_worker,
         )
-        return make_collector(
-            factory,
-            self.learner.collection_policy,
-            frames_per_batch=config.algorithm.frames_per_batch,
-            total_frames=stage_end - self.state["frames"],
-            backend=config.collection.backend,
-            workers=config.collection.workers,
-            seed=config.seed * 1_000_003 + self.state["batches"],
-            ray_init_kwargs=dict(config.collection.ray_init_kwargs),
-        )
+        with torch.random.fork_rng(devices=[]):
+            return make_collector(
+                factory,
+                self.learner.collection_policy,
+                frames_per_batch=config.algorithm.frames_per_batch,
+                total_frames=stage_end - self.state["frames"],
+                backend=config.collection.backend,
+                workers=config.collection.workers,
+                seed=self._segment_seed(),
+                ray_init_kwargs=dict(config.collection.ray_init_kwargs),
+            )
+
+    def _segment_seed(self) -> int:
+        return self.config.seed * SEGMENT_SEED_STRIDE + self.state["batches"]
+
+    def _start_segment(self, collector) -> None:
+        """Restart the simulators from the segment's seed (as a resumed run starts)."""
+        with torch.random.fork_rng(devices=[]):
+            restart_collection(collector, self._segment_seed())
 
     def _learn(self, batch: TensorDictBase, collector) -> None:
         """One update on a collected batch, then the bookkeeping it makes due."""
@@ -307,8 +344,26 @@ class _Run:
         if every and state["frames"] - state["last_eval_frames"] >= every:
             self.evaluate_now()
 
+    def _pending_stages(self) -> list[tuple[dict[str, float], int, list[int]]]:
+        """(conditions, stage end, segment ends still ahead) of the rest of the
+        curriculum: each stage is cut every ``checkpoint_every_frames`` from its start."""
+        pending, stage_start, every = [], 0, self.config.checkpoint_every_frames
+        for stage in self.config.curriculum.stages:
+            stage_end = stage_start + stage.frames
+            ends = range(stage_start + every, stage_end, every)
+            ahead = [end for end in [*ends, stage_end] if end > self.state["frames"]]
+            if ahead:
+                pending.append((stage.conditions, stage_end, ahead))
+            stage_start = stage_end
+        return pending
+
     def train(self) -> bool:
-        """Run the remaining curriculum; ``False`` if the time budget cut it short."""
+        """Run the remaining curriculum; ``False`` if the time budget cut it short.
+
+        Segment by segment: restart the simulators from the segment's seed, collect and
+        learn up to its end, write ``last.ckpt`` (the last segment's after the final
+        evaluation). A resumed run starts at a segment start like this one did.
+        """
         config, state = self.config, self.state
         started, wall_before = time.perf_counter(), state["wall_s"]
         bar = tqdm(
@@ -318,28 +373,34 @@ class _Run:
             unit="frame",
             disable=not self.progress,
         )
-        stage_end, in_time = 0, True
-        for stage in config.curriculum.stages:
-            stage_end += stage.frames
-            if state["frames"] >= stage_end or not in_time:
-                continue
-            collector = self._stage_collector(stage.conditions, stage_end)
+        in_time = True
+        pending = self._pending_stages()
+        for stage_index, (conditions, stage_end, segment_ends) in enumerate(pending):
+            collector = self._stage_collector(conditions, stage_end)
             try:
+                self._start_segment(collector)
                 tick = time.perf_counter()
                 for batch in collector:
                     state["collection_s"] += time.perf_counter() - tick
                     self._learn(batch, collector)
                     state["wall_s"] = wall_before + time.perf_counter() - started
                     bar.update(batch.numel())
-                    due = state["frames"] - state["last_checkpoint_frames"]
-                    if due >= config.checkpoint_every_frames:
-                        self.save()
                     in_time = not self._out_of_time(started, wall_before)
                     if not in_time:
                         break
+                    if segment_ends and state["frames"] >= segment_ends[0]:  # a segment ends
+                        while segment_ends and segment_ends[0] <= state["frames"]:
+                            segment_ends.pop(0)
+                        last = not segment_ends and stage_index == len(pending) - 1
+                        if not last:  # the last is saved after the final evaluation
+                            self.save()
+                        if segment_ends:
+                            self._start_segment(collector)
                     tick = time.perf_counter()
             finally:
                 collector.shutdown()
+            if not in_time:
+                break
         bar.close()
         state["wall_s"] = wall_before + time.perf_counter() - started
         if config.evaluation.every_frames and state["last_eval_frames"] != state["frames"]:
@@ -394,6 +455,66 @@ class _Run:
         return metrics
 
 
+def _checked_progress(path: Path, saved: dict, fresh: dict) -> dict:
+    """``saved`` progress if it has the fields of ``fresh`` with sane values."""
+    if set(saved) != set(fresh):
+        raise CheckpointError(
+            f"{path}: progress has fields {sorted(saved)}, expected {sorted(fresh)}"
+        )
+    for name in ("frames", "batches", "last_checkpoint_frames", "last_eval_frames"):
+        value = saved[name]
+        if not isinstance(value, int) or isinstance(value, bool) or value < -1:
+            raise CheckpointError(f"{path}: progress.{name} is {value!r}, not a count")
+    for name in ("collection_s", "update_s", "evaluation_s", "wall_s"):
+        if not isinstance(saved[name], int | float) or saved[name] < 0:
+            raise CheckpointError(f"{path}: progress.{name} is {saved[name]!r}")
+    if not isinstance(saved["evaluations"], list):
+        raise CheckpointError(f"{path}: progress.evaluations is not a list")
+    return saved
+
+
+def _trim_scalar_logs(log_dir: Path, *, after_frames: int | None) -> None:
+    """Drop the CSV log rows a killed run wrote after its last checkpoint (all of them
+    when there is none), so the resumed run does not log those frames twice."""
+    scalars = log_dir / "scalars"
+    if not scalars.is_dir():
+        return
+    for leftover in scalars.glob(".*.csv"):  # a kill during an earlier trim
+        leftover.unlink(missing_ok=True)
+    for csv in sorted(scalars.glob("*.csv")):
+        lines = csv.read_text().splitlines(keepends=True)
+        kept = [
+            line
+            for line in lines
+            if after_frames is not None
+            and _row_step(line) is not None
+            and _row_step(line) <= after_frames
+        ]
+        if kept != lines:
+            write_text_atomic(csv, "".join(kept))
+
+
+def _row_step(line: str) -> int | None:
+    """The step of a TorchRL CSV row ``step,value`` (``None`` for a torn last line)."""
+    step, _, value = line.partition(",")
+    if not line.endswith("\n") or not value.strip():
+        return None
+    try:
+        return int(step)
+    except ValueError:
+        return None
+
+
+def _check_inputs(config: FinetuneConfig) -> None:
+    """The checkpoint exists; the demonstrations exist if the learner reads them (PPO
+    with the ``frozen_actor`` or no regulariser, and TD3+BC with ``demo_fraction`` 0,
+    need none, whatever ``demos`` says)."""
+    if not Path(config.checkpoint).is_file():
+        raise FileNotFoundError(f"checkpoint: no such actor checkpoint {config.checkpoint!r}")
+    if uses_demos(config) and not Path(config.demos).is_dir():
+        raise FileNotFoundError(f"demos: no such dataset directory {config.demos!r}")
+
+
 def _rates(groups: dict) -> str:
     return ", ".join(
         f"{g} {r['successes']}/{r['episodes']} [{r['success_low']:.2f}, {r['success_high']:.2f}]"
@@ -421,7 +542,8 @@ def finetune(config: FinetuneConfig, run_dir: str | Path, *, progress: bool = Tr
 
     Running again with the same ``run_dir`` resumes from ``last.ckpt``.
     """
-    validate_finetune_config(config)
+    validate_finetune_config(config, inputs_exist=False)
+    _check_inputs(config)
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     run = _Run(config, run_dir, progress=progress)

@@ -14,6 +14,8 @@ entropy bonus) plus ``regularizer_weight`` times the regulariser; during the fir
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule
@@ -21,6 +23,11 @@ from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
 
 from pilerl.policies import actor_policy, make_stochastic_actor
+from pilerl.policies.checkpoint_file import (
+    CheckpointError,
+    load_module_state,
+    load_optimizer_state,
+)
 
 from .config import PPOConfig
 from .critics import make_value_network
@@ -84,9 +91,26 @@ class PPOLearner:
         """What the collector runs (samples around the cloned action)."""
         return self.actor
 
-    def checkpoint_components(self) -> dict[str, object]:
-        """Objects with ``state_dict`` that ``last.ckpt`` stores and restores."""
-        return {"actor": self.actor, "critic": self.critic, "optimizer": self.optimizer}
+    def state_dict(self) -> dict[str, object]:
+        """What ``last.ckpt`` stores: weights, optimiser and the minibatch-order generator."""
+        return {
+            "actor": self.actor.state_dict(),
+            "critic": self.critic.state_dict(),
+            "optimizer": self.optimizer.state_dict(),
+            "generator": self.generator.get_state(),
+        }
+
+    def load_state_dict(self, state: dict, *, path: Path) -> None:
+        """Restore ``state_dict()`` read from ``path``; what does not fit is refused."""
+        load_module_state(path, self.actor, state.get("actor"), "learner.actor does not fit")
+        load_module_state(path, self.critic, state.get("critic"), "learner.critic does not fit")
+        load_optimizer_state(path, self.optimizer, state.get("optimizer"), "learner.optimizer")
+        generator = state.get("generator")
+        if not isinstance(generator, torch.Tensor) or (
+            generator.dtype != torch.uint8 or generator.shape != self.generator.get_state().shape
+        ):
+            raise CheckpointError(f"{path}: learner.generator is not a generator state")
+        self.generator.set_state(generator)
 
     def regularizer_loss(self, batch: TensorDictBase) -> torch.Tensor:
         """The regulariser on ``batch`` (0 without one), differentiable in the actor."""

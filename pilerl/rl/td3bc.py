@@ -7,12 +7,17 @@ reward and end flags, like a TorchRL rollout) and the rest from the online repla
 TD3+BC's actor loss is ``-lambda * Q(s, pi(s)) + MSE(pi(s), a)`` on that batch, with
 ``lambda = alpha / mean|Q|``: the BC term is the regulariser that keeps the actor near
 the demonstrated (and recently executed) actions.
+
+``state_dict()`` holds the online replay buffer's transitions too, so a resumed run
+samples exactly what an uninterrupted one would.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import torch
-from tensordict import TensorDictBase, cat
+from tensordict import TensorDict, TensorDictBase, cat
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.modules import AdditiveGaussianModule
@@ -20,9 +25,17 @@ from torchrl.objectives import SoftUpdate, TD3BCLoss
 
 from pilerl.data import make_replay_buffer
 from pilerl.policies import actor_policy
+from pilerl.policies.checkpoint_file import (
+    CheckpointError,
+    load_module_state,
+    load_optimizer_state,
+)
 
 from .config import TD3BCConfig
 from .critics import make_q_network
+
+END_FLAGS = ("done", "terminated", "truncated")
+REPLAY_INDEX_KEY = "index"  # TensorDictReplayBuffer stores each transition's index
 
 
 class TD3BCLearner:
@@ -95,13 +108,97 @@ class TD3BCLearner:
         """What the collector runs (the actor plus Gaussian exploration noise)."""
         return self._collection_policy
 
-    def checkpoint_components(self) -> dict[str, object]:
-        """Objects with ``state_dict`` that ``last.ckpt`` stores and restores."""
+    def state_dict(self) -> dict[str, object]:
+        """What ``last.ckpt`` stores: networks and targets, optimisers, the update count
+        (the actor's delay phase) and the online replay buffer's transitions."""
         return {
-            "loss": self.loss,
-            "actor_optimizer": self.actor_optimizer,
-            "critic_optimizer": self.critic_optimizer,
+            "loss": self.loss.state_dict(),
+            "actor_optimizer": self.actor_optimizer.state_dict(),
+            "critic_optimizer": self.critic_optimizer.state_dict(),
+            "exploration": self.exploration.state_dict(),
+            "updates": self.updates,
+            "replay": self._replay_state(),
         }
+
+    def load_state_dict(self, state: dict, *, path: Path) -> None:
+        """Restore ``state_dict()`` read from ``path``; what does not fit is refused."""
+        load_module_state(path, self.loss, state.get("loss"), "learner.loss does not fit")
+        load_module_state(
+            path, self.exploration, state.get("exploration"), "learner.exploration does not fit"
+        )
+        for name in ("actor_optimizer", "critic_optimizer"):
+            load_optimizer_state(path, getattr(self, name), state.get(name), f"learner.{name}")
+        updates = state.get("updates")
+        if not isinstance(updates, int) or updates < 0:
+            raise CheckpointError(f"{path}: learner.updates is {updates!r}, not a count")
+        self._load_replay(path, state.get("replay"))
+        self.updates = updates
+
+    def _replay_state(self) -> dict[str, object]:
+        """The stored transitions (storage order) and the writer's position, as tensors."""
+        size = len(self.replay)
+        data = {}
+        if size:
+            stored = self.replay.storage[:size]
+            data = {
+                "/".join((key,) if isinstance(key, str) else key): value.contiguous()
+                for key, value in stored.items(include_nested=True, leaves_only=True)
+            }
+        return {"size": size, "data": data, "writer": dict(self.replay._writer.state_dict())}
+
+    def _load_replay(self, path: Path, state: object) -> None:
+        """Refill the (empty) online buffer exactly as saved, after checking every leaf."""
+        if not isinstance(state, dict) or not isinstance(state.get("data"), dict):
+            raise CheckpointError(f"{path}: learner.replay is not a replay buffer state")
+        size, data, writer = state.get("size"), state["data"], state.get("writer")
+        capacity = self.settings.buffer_size
+        if not isinstance(size, int) or not 0 <= size <= capacity:
+            raise CheckpointError(
+                f"{path}: learner.replay holds {size!r} transitions (buffer size {capacity})"
+            )
+        if (
+            not isinstance(writer, dict)
+            or not all(
+                isinstance(writer.get(k), int) and writer[k] >= 0
+                for k in ("_cursor", "_write_count")
+            )
+            or writer["_cursor"] >= capacity
+        ):
+            raise CheckpointError(f"{path}: learner.replay has no valid writer position")
+        if size == 0:
+            return
+        expected = {self._leaf_name(key): key for key in self.keys}
+        expected[REPLAY_INDEX_KEY] = REPLAY_INDEX_KEY
+        if set(data) != set(expected):
+            raise CheckpointError(
+                f"{path}: learner.replay holds {sorted(data)}, expected {sorted(expected)}"
+            )
+        for name, value in data.items():
+            want_shape, want_dtype = self._leaf_layout(name, size)
+            if value.shape != want_shape or value.dtype != want_dtype:
+                raise CheckpointError(
+                    f"{path}: learner.replay/{name} is {value.dtype}{tuple(value.shape)}, "
+                    f"expected {want_dtype}{tuple(want_shape)}"
+                )
+        transitions = TensorDict(
+            {expected[n]: v for n, v in data.items() if n != REPLAY_INDEX_KEY}, batch_size=[size]
+        )
+        self.replay.extend(transitions)
+        self.replay._writer.load_state_dict(writer)
+
+    @staticmethod
+    def _leaf_name(key: str | tuple[str, ...]) -> str:
+        return "/".join((key,) if isinstance(key, str) else key)
+
+    def _leaf_layout(self, name: str, size: int) -> tuple[torch.Size, torch.dtype]:
+        """Shape and dtype of a stored leaf: sensors, reward and flags [N, 1], action
+        [N, n_u], the buffer's own index [N]."""
+        if name == REPLAY_INDEX_KEY:
+            return torch.Size([size]), torch.int64
+        if name.split("/")[-1] in END_FLAGS:
+            return torch.Size([size, 1]), torch.bool
+        width = self.policy.config.n_controls if name == "action" else 1
+        return torch.Size([size, width]), torch.float32
 
     def sample(self) -> TensorDictBase:
         """One training batch: online transitions and demonstrations."""

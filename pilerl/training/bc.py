@@ -9,10 +9,13 @@ did (an epoch = ``lm_iterations`` damped Gauss-Newton steps on random mini-batch
 
 Checkpoints (``run_dir``): ``last.pt`` after every epoch (actor, optimiser, epoch, RNG
 state, history) and ``best.pt`` (the actor with the lowest validation loss, readable by
-``pilerl.policies.load_actor``). Both are read with ``torch.load(weights_only=True)``: no
-code runs on load. A run given the ``run_dir`` of a killed run resumes from ``last.pt``
-and ends with the same weights as an uninterrupted run: the batch order of epoch k is
-drawn from a generator seeded with (seed, k), and the dropout RNG state is restored.
+``pilerl.policies.load_actor``). Both are verified checkpoint files
+(``pilerl.policies.checkpoint_file``: zip CRCs and a SHA-256 checked, read with
+``torch.load(weights_only=True)``, sizes checked before allocating): no code runs on load
+and a damaged file is refused with ``CheckpointError``. A run given the ``run_dir`` of a
+killed run resumes from ``last.pt`` and ends with the same weights as an uninterrupted
+run: the batch order of epoch k is drawn from a generator seeded with (seed, k), and the
+dropout RNG state is restored.
 """
 
 from __future__ import annotations
@@ -28,16 +31,23 @@ from tensordict.nn import TensorDictModule
 from torchrl.objectives import BCLoss
 from tqdm import tqdm
 
-from pilerl.io import atomic_path
 from pilerl.policies import actor_policy, policy_actor, save_actor
 from pilerl.policies.actors import RandomForestActor
-from pilerl.policies.config import ActorConfig
+from pilerl.policies.checkpoint import actor_config_from_json, rebuild_policy
+from pilerl.policies.checkpoint_file import (
+    CheckpointError,
+    load_optimizer_state,
+    parse_json,
+    read_checkpoint,
+    write_checkpoint,
+)
 from pilerl.policies.levenberg_marquardt import fit_lm
-from pilerl.policies.registry import build_policy, get_spec
+from pilerl.policies.registry import get_spec
 
 TRAINERS = ("gradient", "levenberg_marquardt", "fit")
 RUN_FORMAT = "pilerl.bc_run"
-RUN_VERSION = 1
+RUN_VERSION = 2  # 2: with a SHA-256 of the content (pilerl.policies.checkpoint_file)
+LEGACY_RUN_VERSIONS = (1,)
 EVAL_BATCH = 8192  # rows per forward pass when computing a validation loss
 
 
@@ -237,30 +247,33 @@ def _save_run(
         "best": best,
         "rng_state": torch.get_rng_state(),
     }
-    with atomic_path(path) as tmp:
-        torch.save(payload, tmp)
+    # a run whose losses are not finite yet (NaN history, best = inf) can still resume
+    write_checkpoint(path, payload, allow_infinite=lambda where: where == "best")
 
 
 def _resume(path: Path, settings: BCSettings):
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as error:  # noqa: BLE001 - torch raises many kinds; name the file
-        raise ValueError(f"{path}: not a readable training checkpoint ({error})") from error
-    if not isinstance(payload, dict) or payload.get("format") != RUN_FORMAT:
-        raise ValueError(f"{path}: not a pilerl behaviour-cloning checkpoint")
-    if payload.get("version") != RUN_VERSION:
-        raise ValueError(
-            f"{path}: checkpoint version {payload.get('version')!r}, "
-            f"this pilerl reads {RUN_VERSION}"
-        )
-    saved = json.loads(payload["settings"])
-    if saved != asdict(settings) | {"epochs": saved["epochs"]}:
+    payload = read_checkpoint(
+        path,
+        expected_format=RUN_FORMAT,
+        version=RUN_VERSION,
+        legacy_versions=LEGACY_RUN_VERSIONS,
+        allow_infinite=lambda where: where == "best",
+        what="training checkpoint",
+    )
+    saved = parse_json(path, payload.get("settings"), "settings")
+    if not isinstance(saved, dict) or saved != asdict(settings) | {"epochs": saved.get("epochs")}:
         raise ValueError(
             f"{path}: was trained with {saved}, not {asdict(settings)}; use a new run directory"
         )
-    policy = build_policy(ActorConfig.from_json(json.loads(payload["actor_config"])))
-    policy.load_state_dict(payload["state_dict"])
+    config = actor_config_from_json(path, payload.get("actor_config"), "actor_config")
+    policy = rebuild_policy(path, config, payload.get("state_dict"), "state_dict")
     optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
-    optimizer.load_state_dict(payload["optimizer"])
-    torch.set_rng_state(payload["rng_state"])
-    return policy, optimizer, json.loads(payload["history"]), float(payload["best"])
+    load_optimizer_state(path, optimizer, payload.get("optimizer"), "optimizer")
+    history = parse_json(path, payload.get("history"), "history", allow_non_finite=True)
+    best, rng_state = payload.get("best"), payload.get("rng_state")
+    if not isinstance(history, list) or not isinstance(best, float):
+        raise CheckpointError(f"{path}: history or best loss missing")
+    if not isinstance(rng_state, torch.Tensor) or rng_state.shape != torch.get_rng_state().shape:
+        raise CheckpointError(f"{path}: rng_state is not torch's generator state")
+    torch.set_rng_state(rng_state)
+    return policy, optimizer, history, best
