@@ -61,6 +61,16 @@ class RunMismatch(RuntimeError):
     """A run directory holds a run made with other settings or inputs."""
 
 
+# the provenance of the run this process is doing (set by begin_run): checkpoints written
+# during the run carry it (pilerl.policies.save_actor)
+_CURRENT_RUN: dict[str, Any] = {}
+
+
+def current_provenance() -> dict[str, Any]:
+    """The provenance of the run in progress, or of this process when no run began."""
+    return dict(_CURRENT_RUN) if _CURRENT_RUN else provenance()
+
+
 # ---------------------------------------------------------------------------- fingerprints
 def fingerprint_path(path: str | Path) -> str:
     """SHA-256 of a file, or of a dataset directory's ``index.json`` (its episode list).
@@ -199,6 +209,8 @@ def begin_run(
         "full_settings": dict(settings),
     }
     write_text_atomic(run_dir / RUN_FILE, json.dumps(record, indent=1, default=str))
+    _CURRENT_RUN.clear()
+    _CURRENT_RUN.update(record["provenance"], run_dir=str(run_dir), inputs=input_prints)
     return False
 
 

@@ -20,6 +20,7 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import register_configs
+from pilerl.policies.checkpoint import warn_if_other_control_rate
 from pilerl.rendering import resolve_videos
 from pilerl.rl import FinetuneConfig, finetune, register_rl_configs, validate_finetune_config
 from pilerl.rl.config import uses_demos
@@ -40,6 +41,7 @@ def main(cfg: DictConfig) -> float:
     limit_threads()
     config: FinetuneConfig = OmegaConf.to_object(cfg)
     config.checkpoint = str(resolve_checkpoint(config.checkpoint))
+    warn_if_other_control_rate(config.checkpoint, config.env.control_hz)
     config.evaluation.video = resolve_videos(config.evaluation.video, where="evaluation.video")
     run_dir = config.output_dir
     validate_finetune_config(config)  # bad settings fail before any work
@@ -48,7 +50,8 @@ def main(cfg: DictConfig) -> float:
         "demos": config.demos if uses_demos(config) else None,
     }
     settings = OmegaConf.to_container(cfg, resolve=True)
-    if begin_run(run_dir, settings, inputs=inputs, growable=GROWABLE):
+    facts = {"control_hz": config.env.control_hz}
+    if begin_run(run_dir, settings, inputs=inputs, growable=GROWABLE, **facts):
         log.info("%s already finished: skipping (same settings)", run_dir)
         return float("nan")
     results = finetune(config, run_dir)

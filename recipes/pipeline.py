@@ -61,7 +61,8 @@ def main(cfg: DictConfig) -> None:
     build_envs(plan)  # a bad condition or env setting fails before any work
     videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
     bc_dir = Path(rl_config.checkpoint).parent
-    if begin_run(out, OmegaConf.to_container(cfg, resolve=True)):
+    facts = {"control_hz": config.env.control_hz, "demonstrations_hz": config.demos.record_hz}
+    if begin_run(out, OmegaConf.to_container(cfg, resolve=True), **facts):
         log.info("%s already finished: skipping (same settings)", out)
         return
 

@@ -97,9 +97,10 @@ def main(cfg: DictConfig) -> float:
 
     # --- this run directory: skip when finished, refuse another config or dataset
     inputs = {"train_data": config.train_data, "validation_data": config.validation_data}
-    rates = sorted({meta.rate_hz for meta in train_store.episodes})
+    rates = sorted({meta.rate_hz for meta in train_store.episodes})  # the control rate
+    control_hz = rates[0] if len(rates) == 1 else rates
     resolved = OmegaConf.to_container(cfg, resolve=True)
-    if begin_run(run_dir, resolved, inputs=inputs, control_hz=rates, sensors=sensors):
+    if begin_run(run_dir, resolved, inputs=inputs, control_hz=control_hz, sensors=sensors):
         log.info("%s already finished: skipping (same settings and data)", run_dir)
         return _objective(json.loads((run_dir / METRICS_FILE).read_text()))
 

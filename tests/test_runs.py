@@ -112,3 +112,27 @@ def test_a_run_directory_as_checkpoint_finds_best_pt_or_says_what_it_expected(tm
     assert resolve_checkpoint(run / "best.pt") == run / "best.pt"
     with pytest.raises(FileNotFoundError, match="no such checkpoint"):
         resolve_checkpoint(tmp_path / "nowhere.pt")
+
+
+def test_checkpoints_carry_the_provenance_of_the_run_that_wrote_them(tmp_path, caplog):
+    from pilerl.policies import make_actor, save_actor
+    from pilerl.policies.checkpoint import read_provenance, warn_if_other_control_rate
+
+    sensors = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
+    stats = {
+        "sensors": {n: {"mean": 0.0, "std": 1.0, "min": -1.0, "max": 1.0} for n in sensors},
+        "action": {"mean": [0.0] * 3, "std": [1.0] * 3, "min": [-1.0] * 3, "max": [1.0] * 3},
+        "n_samples": 10,
+    }
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "index.json").write_text("{}")
+    begin_run(tmp_path / "run", SETTINGS, inputs={"train_data": data}, control_hz=20.0)
+    path = save_actor(tmp_path / "best.pt", make_actor("nnetv2", sensors=sensors, stats=stats))
+    provenance = read_provenance(path)
+    assert provenance["control_hz"] == 20.0
+    assert provenance["inputs"]["train_data"] == fingerprint_path(data)
+    assert provenance["packages"]["torchrl"] and "dirty" in provenance["git"]
+    assert not warn_if_other_control_rate(path, 20.0)
+    assert warn_if_other_control_rate(path, 3.0)
+    assert "trained at 20 Hz but runs at 3 Hz" in caplog.text

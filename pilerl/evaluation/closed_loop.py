@@ -61,6 +61,13 @@ def run_closed_loop(
     Returns the summary (as in ``summary.json``).
     """
     out_dir = Path(out_dir)
+    checkpoint = getattr(controller, "checkpoint", None)
+    if checkpoint is not None:  # a controller cloned at another rate acts differently
+        from pilerl.policies.checkpoint import warn_if_other_control_rate
+
+        probe = make_gym_env(plan.simulator, **plan.env_kwargs, condition=plan.conditions[0])
+        warn_if_other_control_rate(checkpoint, 1.0 / float(probe.unwrapped.dt))
+        probe.close()
     records = evaluate(controller, plan, workers=workers, progress=progress)
     summary = summarize(records)
     # --- results first: a person can read them while the videos render

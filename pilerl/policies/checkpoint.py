@@ -25,10 +25,14 @@ generator. Writes are atomic. Every failure is a ``CheckpointError`` naming the 
 from __future__ import annotations
 
 import json
+import logging
+import math
 from pathlib import Path
 
 import torch
 from tensordict.nn import TensorDictModule
+
+from pilerl.runs import current_provenance
 
 from .actors import actor_policy, policy_actor
 from .checkpoint_file import (
@@ -41,6 +45,8 @@ from .checkpoint_file import (
 from .config import ActorConfig
 from .policy import SensorPolicy
 from .registry import build_policy
+
+log = logging.getLogger(__name__)
 
 CHECKPOINT_FORMAT = "pilerl.actor"
 CHECKPOINT_VERSION = 2
@@ -75,8 +81,51 @@ def save_actor(path: str | Path, actor: TensorDictModule | SensorPolicy) -> Path
         "version": CHECKPOINT_VERSION,
         "config": json.dumps(policy.config.to_json(), allow_nan=False),
         "state_dict": {k: v.detach().cpu().clone() for k, v in policy.state_dict().items()},
+        # where it came from: package versions, git commit, the run's datasets, control rate
+        "provenance": json.dumps(current_provenance(), default=str),
     }
     return write_checkpoint(path, payload, allow_infinite=_may_be_infinite)
+
+
+def read_provenance(path: str | Path) -> dict:
+    """The provenance saved in an actor checkpoint (``{}`` for files from before it)."""
+    path = Path(path)
+    payload = read_checkpoint(
+        path,
+        expected_format=CHECKPOINT_FORMAT,
+        version=CHECKPOINT_VERSION,
+        legacy_versions=LEGACY_VERSIONS,
+        allow_infinite=_may_be_infinite,
+        what="pilerl actor checkpoint",
+    )
+    if "provenance" not in payload:
+        return {}
+    provenance = parse_json(path, payload["provenance"], "provenance")
+    if not isinstance(provenance, dict):
+        raise CheckpointError(f"{path}: provenance is not a JSON object")
+    return provenance
+
+
+def warn_if_other_control_rate(path: str | Path, control_hz: float) -> bool:
+    """Warn when a controller runs at another rate than its training data's; True if so.
+
+    A controller cloned at 20 Hz reads sensor changes per step and acts per step: at 3 Hz
+    its deltas mean something else. The training rate comes from the checkpoint's
+    provenance (``control_hz``: the training data's rate, or the fine-tuning env's).
+    """
+    trained = read_provenance(path).get("control_hz")
+    rates = trained if isinstance(trained, list) else [trained]
+    rates = [float(r) for r in rates if isinstance(r, int | float)]
+    if not rates or any(math.isclose(r, control_hz, rel_tol=0.01) for r in rates):
+        return False
+    log.warning(
+        "%s was trained at %s Hz but runs at %g Hz here: its actions are per-step deltas, "
+        "so expect different behaviour (set env.control_hz to match)",
+        path,
+        "/".join(f"{r:g}" for r in rates),
+        control_hz,
+    )
+    return True
 
 
 def load_actor(path: str | Path) -> TensorDictModule:

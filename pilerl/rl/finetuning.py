@@ -169,6 +169,10 @@ class _Run:
             "wall_s": 0.0,
         }
         self.logger = make_logger(config.logger.backend, run_dir, experiment_name=LOG_NAME)
+        # the time budget: a deadline for the whole invocation, final evaluations included
+        self.deadline: float | None = None
+        self.final_eval_s = 0.0  # measured: one evaluation with final_episodes
+        self.periodic_eval_s = 0.0  # measured: the last periodic evaluation
 
     # ------------------------------------------------------------------ persistence
     def resume(self) -> bool:
@@ -228,20 +232,28 @@ class _Run:
     def evaluate_before(self) -> None:
         if self.state["before"] is None:
             evaluation = self.config.evaluation
+            started = time.perf_counter()
             self.state["before"], self.state["before_conditions"], *_ = self._evaluate(
                 self.config.checkpoint,
                 episodes=evaluation.final_episodes,
                 seed=evaluation.final_seed,
             )
+            self.final_eval_s = time.perf_counter() - started
             log.info("before: %s", _rates(self.state["before"]))
 
     def evaluate_now(self) -> None:
         """Periodic evaluation of the current actor; keeps ``best.pt``."""
         evaluation = self.config.evaluation
+        started = time.perf_counter()
         scratch = save_actor(self.run_dir / EVAL_ACTOR, self.policy)
         groups, _, records, plan = self._evaluate(
             scratch, episodes=evaluation.episodes, seed=evaluation.seed
         )
+        self.periodic_eval_s = time.perf_counter() - started
+        if not self.final_eval_s and evaluation.episodes:  # resumed: scale the periodic one
+            self.final_eval_s = (
+                self.periodic_eval_s * evaluation.final_episodes / evaluation.episodes
+            )
         frames = self.state["frames"]
         self.state["evaluations"].append({"frames": frames, "groups": groups})
         self.state["last_eval_frames"] = frames
@@ -293,9 +305,24 @@ class _Run:
         if self.logger is not None:
             self.logger.log_scalar(name, value, step=self.state["frames"])
 
-    def _out_of_time(self, started: float, wall_before: float) -> bool:
+    def start_clock(self) -> None:
+        """Start the time budget: this invocation may take ``time_budget_minutes`` in all,
+        less what earlier invocations of a resumed run already spent training."""
         budget = self.config.time_budget_minutes
-        return budget > 0 and wall_before + time.perf_counter() - started >= 60 * budget
+        if budget > 0:
+            self.deadline = time.perf_counter() + 60 * budget - self.state["wall_s"]
+
+    def reserve_s(self) -> float:
+        """Time to keep for what follows training: the last periodic evaluation and the
+        final evaluations of ``final.pt`` and ``best.pt``, as long as they took so far."""
+        periodic = bool(self.config.evaluation.every_frames)
+        return (2 if periodic else 1) * self.final_eval_s + periodic * self.periodic_eval_s
+
+    def _out_of_time(self, started: float, wall_before: float) -> bool:
+        del started, wall_before  # the deadline covers the whole invocation
+        return self.deadline is not None and time.perf_counter() + self.reserve_s() >= (
+            self.deadline
+        )
 
     def _stage_collector(self, conditions: dict[str, float], stage_end: int):
         """A collector for the rest of a curriculum stage; building it draws nothing from
@@ -366,11 +393,15 @@ class _Run:
         """
         config, state = self.config, self.state
         started, wall_before = time.perf_counter(), state["wall_s"]
+        total_frames = sum(stage.frames for stage in config.curriculum.stages)
+        budgeted = self.deadline is not None  # then the bar counts the budget's seconds
         bar = tqdm(
-            total=sum(stage.frames for stage in config.curriculum.stages),
-            initial=state["frames"],
-            desc=f"fine-tuning ({config.algorithm.name})",
-            unit="frame",
+            total=round(self.deadline - self.reserve_s() - started) if budgeted else total_frames,
+            initial=0 if budgeted else state["frames"],
+            desc=f"fine-tuning ({config.algorithm.name}, time budget)"
+            if budgeted
+            else f"fine-tuning ({config.algorithm.name})",
+            unit="s" if budgeted else "frame",
             disable=not self.progress,
         )
         in_time = True
@@ -384,7 +415,12 @@ class _Run:
                     state["collection_s"] += time.perf_counter() - tick
                     self._learn(batch, collector)
                     state["wall_s"] = wall_before + time.perf_counter() - started
-                    bar.update(batch.numel())
+                    if budgeted:
+                        bar.n = min(bar.total, round(time.perf_counter() - started))
+                        bar.set_postfix(frames=state["frames"], refresh=False)
+                        bar.refresh()
+                    else:
+                        bar.update(batch.numel())
                     in_time = not self._out_of_time(started, wall_before)
                     if not in_time:
                         break
@@ -548,6 +584,7 @@ def finetune(config: FinetuneConfig, run_dir: str | Path, *, progress: bool = Tr
     run_dir.mkdir(parents=True, exist_ok=True)
     run = _Run(config, run_dir, progress=progress)
     run.resume()
+    run.start_clock()  # the budget covers the evaluations before and after training too
     run.evaluate_before()
     if config.evaluation.every_frames and not run.state["evaluations"]:
         run.evaluate_now()  # the cloned actor: the curve's first point and best.pt so far
