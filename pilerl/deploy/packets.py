@@ -20,7 +20,7 @@ Bodies:
 - command (runtime -> machine): ``answered_seq`` u32 (the sensor packet acted on),
   ``faults`` u16 (``pilerl.deploy.watchdog.Fault`` bits, 0 = none), ``state`` u8
   (1 armed, 2 faulted: neutral until re-armed), one pad byte, then float32
-  boom, bucket, throttle in [-1, 1]. 44 bytes.
+  boom, bucket, throttle in [-1, 1]. 48 bytes.
 - re-arm (operator -> runtime): no body. 28 bytes.
 
 A packet of the wrong size, magic, version, kind, CRC or layout is a ``PacketError``
