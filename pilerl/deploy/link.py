@@ -59,6 +59,8 @@ class LinkFault:
             return step >= self.at_step
         if self.kind == "reorder":
             return step in (self.at_step, self.at_step + 1)
+        if self.kind in ("duplicate", "nan", "out_of_range", "garbage"):
+            return step == self.at_step
         return self.at_step <= step < self.at_step + self.count
 
 
