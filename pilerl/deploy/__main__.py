@@ -2,6 +2,7 @@
 
     python -m pilerl.deploy runtime dannet.onnx --port 47000 --run-dir runs/deploy
     python -m pilerl.deploy bridge --port 47000 --episodes 3 --speedup 5
+    python -m pilerl.deploy rearm --port 47000          # resume after a fault
     python -m pilerl.deploy faults dannet.onnx --cases 3 --speedup 4
 
 The Hydra recipe ``recipes/deploy.py`` calls the same functions.
@@ -36,11 +37,14 @@ def main(argv: list[str] | None = None) -> int:
     bridge.add_argument("--port", type=int, default=47000, help="the runtime's port")
     bridge.add_argument("--episodes", type=int, default=1)
     bridge.add_argument("--seed", type=int, default=1, help="evaluator base seed")
+    rearm = sub.add_parser("rearm", help="ask a runtime to resume after a fault")
+    rearm.add_argument("--runtime-host", default="127.0.0.1")
+    rearm.add_argument("--port", type=int, default=47000, help="the runtime's port")
     faults = sub.add_parser("faults", help="fault-injection table against the simulator")
     faults.add_argument("controller")
     faults.add_argument("--cases", type=int, default=1)
     faults.add_argument("--max-sensor-age", type=float, default=0.15)
-    for p in (runtime, bridge, faults):
+    for p in (runtime, bridge, rearm, faults):
         p.add_argument("--control-hz", type=float, default=20.0)
         p.add_argument("--speedup", type=float, default=1.0)
         p.add_argument("--condition", default="summer")
@@ -61,6 +65,15 @@ def main(argv: list[str] | None = None) -> int:
             for record in run_bridge(settings, (args.runtime_host, args.port)):
                 keys = ("seed", "success", "fill_fraction", "steps", "late_commands")
                 print(json.dumps({k: record[k] for k in keys}))
+        elif args.command == "rearm":
+            from .hil import simulator_layout
+            from .link import MachineLink
+
+            layout, _ = simulator_layout("pile_loader", _env_kwargs(args))
+            link = MachineLink(layout, (args.runtime_host, args.port))
+            link.send_rearm()
+            link.close()
+            print(f"re-arm sent to {args.runtime_host}:{args.port}")
         else:
             from .faults import fault_table, format_table
             from .loop import RuntimeSettings
