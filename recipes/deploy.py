@@ -2,6 +2,7 @@
 
     python recipes/deploy.py controller=dannet.onnx                       # serve a machine
     python recipes/deploy.py controller=dannet.onnx mode=hil runtime.speedup=5
+    python recipes/deploy.py controller=scripted mode=hil    # the scripted operator
 
 Writes to the run directory: ``episodes/`` (the run as demonstration episodes),
 ``cycles.csv``, ``faults.csv``, ``summary.json``, ``layout.json``; with ``mode=hil`` also
@@ -21,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 from pilerl.config import register_configs
 from pilerl.deploy.config import DeployConfig
 from pilerl.deploy.controllers import load_controller
-from pilerl.deploy.hil import run_hil, simulator_layout
+from pilerl.deploy.hil import run_hil, runtime_kind, simulator_layout
 from pilerl.deploy.runtime import ControlRuntime
 from pilerl.io import write_text_atomic
 from pilerl.runtime import limit_threads
@@ -38,7 +39,8 @@ def main(cfg: DictConfig) -> None:
         config: DeployConfig = OmegaConf.to_object(
             OmegaConf.merge(OmegaConf.structured(DeployConfig), cfg)
         )
-        controller = load_controller(config.controller)
+        layout, control_hz = simulator_layout(config.env.simulator, config.env.make_kwargs())
+        controller = load_controller(config.controller, sensors=layout.names, control_hz=control_hz)
     except (ValueError, FileNotFoundError) as error:
         log.error("%s", error)
         sys.exit(2)
@@ -59,8 +61,8 @@ def main(cfg: DictConfig) -> None:
         for row in rows:
             log.info("hil episode %s", row)
     else:
-        layout, _ = simulator_layout(config.env.simulator, config.env.make_kwargs())
-        runtime = ControlRuntime(controller, layout, settings, run_dir=out_dir)
+        kind = runtime_kind(controller.name)
+        runtime = ControlRuntime(controller, layout, settings, run_dir=out_dir, runtime_kind=kind)
         log.info("serving %s on %s:%d", controller.name, *runtime.address)
         summary = runtime.run(
             max_seconds=config.runtime.max_seconds, episodes=config.runtime.episodes

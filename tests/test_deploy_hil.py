@@ -18,7 +18,12 @@ from pilerl.deploy import BridgeSettings, RuntimeSettings, load_controller
 from pilerl.deploy.config import DeployConfig
 from pilerl.deploy.faults import REARM_STEP, run_scenario, scenarios
 from pilerl.deploy.hil import run_hil
-from pilerl.evaluation.evaluator import ActorController, EvaluationPlan, evaluate
+from pilerl.evaluation.evaluator import (
+    ActorController,
+    EvaluationPlan,
+    ScriptedController,
+    evaluate,
+)
 from pilerl.policies import make_actor, save_actor
 from pilerl.policies.export import export_onnx
 from pilerl.training.bc import BCSettings, train_bc
@@ -147,17 +152,20 @@ def test_bad_deploy_configs_fail_before_serving():
         load_controller("model.h5")
 
 
-def test_recipe_runs_the_simulator_as_the_machine(cloned, tmp_path):
+def test_recipe_runs_the_scripted_operator_against_the_simulator(tmp_path):
     run = tmp_path / "hil"
+    env = {"start_distance_range_m": (1.0, 1.5)}
+    plan = EvaluationPlan("pile_loader", env, ("summer",), episodes=1, seed=2)
+    (expected,) = evaluate(ScriptedController(), plan, workers=1, progress=False)
     result = subprocess.run(
         [
             sys.executable,
             str(ROOT / "recipes" / "deploy.py"),
             f"hydra.run.dir={run}",
-            f"controller={cloned[1]}",
+            "controller=scripted",
             "mode=hil",
             "hil.episodes=1",
-            "hil.max_steps=40",
+            "hil.seed=2",
             "runtime.speedup=10",
             "hil.command_wait_s=10",
             "runtime.max_sensor_age_s=20",
@@ -168,6 +176,8 @@ def test_recipe_runs_the_simulator_as_the_machine(cloned, tmp_path):
         timeout=120,
     )
     assert result.returncode == 0, result.stderr[-2000:]
-    rows = json.loads((run / "hil_episodes.json").read_text())
-    assert len(rows) == 1 and rows[0]["late_commands"] == 0
+    (row,) = json.loads((run / "hil_episodes.json").read_text())
+    assert row["late_commands"] == 0 and row["seed"] == expected["seed"]
+    assert row["success"] == expected["success"]
+    assert row["fill_fraction"] == pytest.approx(expected["fill_fraction"], abs=1e-9)
     assert len(EpisodeStore.open(run / "episodes")) == 1

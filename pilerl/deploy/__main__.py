@@ -25,7 +25,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m pilerl.deploy", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     runtime = sub.add_parser("runtime", help="serve a controller over UDP")
-    runtime.add_argument("controller", help=".onnx export or .pt checkpoint")
+    runtime.add_argument("controller", help=".onnx export, .pt checkpoint or 'scripted'")
     runtime.add_argument("--host", default="127.0.0.1")
     runtime.add_argument("--port", type=int, default=47000)
     runtime.add_argument("--run-dir", default="outputs/deploy/cli")
@@ -96,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def serve(args) -> dict:
     from .controllers import load_controller
-    from .hil import simulator_layout
+    from .hil import runtime_kind, simulator_layout
     from .loop import RuntimeSettings
     from .runtime import ControlRuntime
 
@@ -108,8 +108,8 @@ def serve(args) -> dict:
         host=args.host,
         port=args.port,
     )
-    controller = load_controller(args.controller)
-    kind = "onnx" if args.controller.endswith(".onnx") else "checkpoint"
+    controller = load_controller(args.controller, sensors=layout.names, control_hz=args.control_hz)
+    kind = runtime_kind(controller.name)
     runtime = ControlRuntime(controller, layout, settings, run_dir=args.run_dir, runtime_kind=kind)
     print(f"serving {controller.name} on {runtime.address[0]}:{runtime.address[1]}", flush=True)
     return runtime.run(max_seconds=args.max_seconds, episodes=args.episodes)

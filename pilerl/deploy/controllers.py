@@ -7,7 +7,10 @@ Two kinds, chosen by file suffix:
 - ``.pt``: a pilerl actor checkpoint (``best.pt``) run as its TorchRL ``TensorDictModule``,
   as the closed-loop evaluator runs it.
 
-Both return ``action`` as float32 [boom, bucket, throttle]; clamping to [-1, 1] and the
+``scripted`` stands for the scripted operator (``pilerl.operators``): a controller with a
+known success rate, for checking the runtime and the HIL bridge without a trained one.
+
+All return ``action`` as float32 [boom, bucket, throttle]; clamping to [-1, 1] and the
 check for non-finite output are the runtime's (the same rule as the simulator's
 ``step``: finite values are clipped, non-finite ones refused).
 """
@@ -84,11 +87,44 @@ class CheckpointController:
             return self.actor(td)["action"].numpy()
 
 
-def load_controller(path: str | Path) -> DeployedController:
-    """``OnnxController`` for ``.onnx``, ``CheckpointController`` for ``.pt``."""
+class ScriptedOperatorController:
+    """The scripted operator with its default style, reading every sensor of the layout.
+
+    It keeps time by counting calls (one per control period) and is reset at each
+    episode start, as the evaluator resets it.
+    """
+
+    def __init__(self, sensors: list[str], *, control_hz: float) -> None:
+        from pilerl.operators import OperatorStyle, ScriptedScoopOperator
+
+        self.operator = ScriptedScoopOperator(OperatorStyle(), dt=1.0 / control_hz)
+        self.input_names = list(sensors)
+        self.name = SCRIPTED
+
+    def reset(self) -> None:
+        self.operator.reset()
+
+    def act(self, readings: np.ndarray) -> np.ndarray:
+        return self.operator.act(dict(zip(self.input_names, readings.tolist(), strict=True)))
+
+
+SCRIPTED = "scripted"
+
+
+def load_controller(
+    path: str | Path, *, sensors: list[str] | None = None, control_hz: float = 20.0
+) -> DeployedController:
+    """``OnnxController`` for ``.onnx``, ``CheckpointController`` for ``.pt``, and the
+    ``ScriptedOperatorController`` for ``scripted`` (which reads ``sensors``)."""
+    if str(path) == SCRIPTED:
+        if sensors is None:
+            raise ValueError("the scripted operator needs the machine's sensor names")
+        return ScriptedOperatorController(sensors, control_hz=control_hz)
     suffix = Path(path).suffix
     if suffix == ".onnx":
         return OnnxController(path)
     if suffix == ".pt":
         return CheckpointController(path)
-    raise ValueError(f"{path}: unknown controller file type {suffix!r}; expected .onnx or .pt")
+    raise ValueError(
+        f"{path}: unknown controller file type {suffix!r}; expected .onnx, .pt or 'scripted'"
+    )

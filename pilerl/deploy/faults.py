@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 from .bridge import BridgeSettings
 from .controllers import DeployedController, load_controller
-from .hil import run_hil
+from .hil import run_hil, simulator_layout
 from .link import LinkFault
 from .loop import RuntimeSettings
 from .packets import ControllerState
@@ -94,7 +94,9 @@ def run_scenario(
     runtime: RuntimeSettings,
 ) -> dict:
     """Run one scenario; returns its outcome (see the module docstring)."""
-    controller = load_controller(controller_path)
+    controller = load_controller(
+        controller_path, sensors=simulator_layout("pile_loader", env_kwargs)[0].names
+    )
     if scenario.slow_at_call is not None:
         # + the runtime's warm-up calls, which come first
         from .runtime import WARM_UP_CALLS

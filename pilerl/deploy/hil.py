@@ -30,6 +30,13 @@ def simulator_layout(simulator: str, env_kwargs: dict) -> tuple[SensorLayout, fl
         env.close()
 
 
+def runtime_kind(controller_name: str) -> str:
+    """``onnx``, ``checkpoint`` or ``scripted``: a label for the logs."""
+    if controller_name.endswith(".onnx"):
+        return "onnx"
+    return "checkpoint" if controller_name.endswith(".pt") else controller_name
+
+
 def _bridge_process(connection, settings, address, fault) -> None:
     torch.set_num_threads(1)
     try:
@@ -59,8 +66,10 @@ def run_hil(
             f"run_hil: the simulator steps at {control_hz} Hz x {bridge.speedup} but the "
             f"runtime runs at {runtime.control_hz} Hz x {runtime.speedup}; make them equal"
         )
-    deployed = controller if not isinstance(controller, str | Path) else load_controller(controller)
-    kind = "onnx" if str(getattr(deployed, "name", "")).endswith(".onnx") else "checkpoint"
+    if isinstance(controller, str | Path):
+        controller = load_controller(controller, sensors=layout.names, control_hz=control_hz)
+    deployed = controller
+    kind = runtime_kind(deployed.name)
     server = ControlRuntime(deployed, layout, runtime, run_dir=run_dir, runtime_kind=kind)
     context = multiprocessing.get_context("fork" if os.name == "posix" else None)
     receiver, sender = context.Pipe(duplex=False)

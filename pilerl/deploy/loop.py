@@ -245,6 +245,8 @@ class ControlLoop:
         if packet.flags & (SensorFlag.EPISODE_START | SensorFlag.EPISODE_END):
             self.next_due_s = None  # a new episode: lock the grid to its first reading
             self.pending = None
+        if packet.flags & SensorFlag.EPISODE_START and hasattr(self.controller, "reset"):
+            self.controller.reset()  # a stateful controller starts its episode afresh
         if packet.flags & SensorFlag.EPISODE_END:
             return  # the reading after the last command: nothing to answer
         if self.pending is not None:

@@ -32,6 +32,8 @@ def warm_up(controller: DeployedController, layout: SensorLayout) -> None:
     index = [layout.names.index(n) for n in controller.input_names if n in layout.names]
     for _ in range(WARM_UP_CALLS):
         controller.act(middle[index])
+    if hasattr(controller, "reset"):
+        controller.reset()
 
 
 class ControlRuntime:
