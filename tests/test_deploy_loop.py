@@ -209,3 +209,16 @@ def test_garbage_is_counted_and_never_reaches_the_controller(datagrams):
         h.deliver(i * 0.001, data)
     assert h.controller.seen == []
     assert sum(h.loop.counters.malformed.values()) == len(datagrams)
+
+
+def test_after_a_stall_the_grid_locks_again_to_the_machine_not_to_the_stall():
+    h = Harness()
+    h.stream(0.0, 1.0)
+    h.reading(1.0 + 0.07, stamp=1.0)  # the runtime was stalled 70 ms (> one period)
+    start = len(h.sent)
+    for k in range(1, 10):
+        h.reading(1.0 + k * PERIOD)
+    times = [t for t, _ in h.sent[start:]]
+    assert times[0] == pytest.approx(1.07)  # the reading that came during the stall
+    assert times[1:] == pytest.approx([1.0 + k * PERIOD for k in range(2, 10)])  # on arrival
+    assert h.loop.counters.deadline_misses == 1 and not h.neutral()

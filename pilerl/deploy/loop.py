@@ -269,7 +269,8 @@ class ControlLoop:
         if action.shape != (3,) or not np.isfinite(action).all():
             faults |= Fault.BAD_OUTPUT
         now_s = self.clock()
-        self._advance_grid(now_s)
+        expected = self.watchdog.expected_arrival_s(packet.stamp_ns * 1e-9)
+        self._advance_grid(now_s, arrival_s if expected is None else min(expected, arrival_s))
         if faults:
             detail = f"inference {inference_s * 1e3:.2f} ms, output {action.tolist()}"
             self._fault(now_s, faults, detail, answered=packet.seq, arrival_s=arrival_s)
@@ -277,14 +278,18 @@ class ControlLoop:
         # the simulator's rule: finite controls are clipped to [-1, 1]
         self._send(np.clip(action, -1.0, 1.0), packet.seq, arrival_s, inference_s)
 
-    def _advance_grid(self, now_s: float) -> None:
+    def _advance_grid(self, now_s: float, reading_s: float) -> None:
+        """Next grid time after acting at ``now_s`` on a reading that arrived, or would
+        have without delay, at ``reading_s``. A grid lost by more than a period (a
+        stall) is locked again to the reading, not to ``now_s``: the machine keeps its
+        own pace, and a grid behind it would hold every later reading."""
         if self.next_due_s is None:
-            self.next_due_s = now_s + self.period_s
+            self.next_due_s = reading_s + self.period_s
             return
         following = self.next_due_s + self.period_s
         if following <= now_s:
             self.counters.deadline_misses += int((now_s - self.next_due_s) // self.period_s)
-            following = now_s + self.period_s
+            following = reading_s + self.period_s
         self.next_due_s = following
 
     def _fault(

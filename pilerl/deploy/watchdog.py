@@ -87,6 +87,10 @@ class Watchdog:
                 self._min_transit_s = transit
         return faults
 
+    def expected_arrival_s(self, sent_s: float) -> float | None:
+        """When a packet stamped ``sent_s`` arrives without delay, on the runtime's clock."""
+        return None if self._min_transit_s is None else sent_s + self._min_transit_s
+
     def stale_at(self) -> float | None:
         """When the last good reading becomes stale, on the runtime's clock [s]."""
         if self.last_arrival_s is None:
