@@ -45,7 +45,7 @@ def main(cfg: DictConfig) -> None:
         log.error("%s", error)
         sys.exit(2)
     out_dir = Path(config.output_dir)
-    settings = config.runtime_settings()
+    settings = config.runtime_settings(control_hz)
 
     # --- serve a machine, or the simulator as the machine
     if config.mode == "hil":

@@ -34,7 +34,7 @@ ENV = {"condition": "summer", "control_hz": 20.0, "start_distance_range_m": (1.0
 SPEEDUP = 25.0
 # the equivalence runs wait for every command (lockstep) and tolerate a loaded machine:
 # they test the protocol and the control path, the fault runs test the watchdog
-LOCKSTEP = RuntimeSettings(control_hz=20.0, max_sensor_age_s=20.0, max_inference_s=5.0)
+LOCKSTEP = RuntimeSettings(control_hz=20.0, max_sensor_age_s=100.0, max_inference_s=25.0)
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +68,7 @@ def _hil(controller, plan, run_dir):
         env_kwargs={**ENV, "condition": "summer"},
         seeds=tuple(plan.seed * 100_000 + i for i in range(plan.episodes)),
         speedup=SPEEDUP,
-        command_wait_s=10.0,
+        command_wait_s=50.0,
     )
     settings = RuntimeSettings(**{**LOCKSTEP.__dict__, "speedup": SPEEDUP})
     return run_hil(controller, bridge, settings, run_dir=run_dir, max_seconds=60.0)

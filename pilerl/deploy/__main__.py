@@ -76,10 +76,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"re-arm sent to {args.runtime_host}:{args.port}")
         else:
             from .faults import fault_table, format_table
+            from .hil import simulator_layout
             from .loop import RuntimeSettings
 
+            _, control_hz = simulator_layout("pile_loader", _env_kwargs(args))
             settings = RuntimeSettings(
-                control_hz=args.control_hz,
+                control_hz=control_hz,  # the simulator's actual rate
                 max_sensor_age_s=args.max_sensor_age,
                 speedup=args.speedup,
             )

@@ -65,10 +65,12 @@ class DeployConfig:
         if not self.controller:
             raise ValueError("deploy: give controller=<file.onnx or best.pt>")
 
-    def runtime_settings(self) -> RuntimeSettings:
+    def runtime_settings(self, control_hz: float | None = None) -> RuntimeSettings:
+        """``control_hz``: the simulator's actual rate (a whole number of physics steps
+        per period, e.g. 2.994 Hz for 3 Hz at 500 Hz physics); default ``env.control_hz``."""
         r = self.runtime
         return RuntimeSettings(
-            control_hz=self.env.control_hz,
+            control_hz=self.env.control_hz if control_hz is None else control_hz,
             max_sensor_age_s=r.max_sensor_age_s,
             max_inference_s=r.max_inference_s,
             speedup=r.speedup,

@@ -94,9 +94,8 @@ def run_scenario(
     runtime: RuntimeSettings,
 ) -> dict:
     """Run one scenario; returns its outcome (see the module docstring)."""
-    controller = load_controller(
-        controller_path, sensors=simulator_layout("pile_loader", env_kwargs)[0].names
-    )
+    layout, control_hz = simulator_layout("pile_loader", env_kwargs)
+    controller = load_controller(controller_path, sensors=layout.names, control_hz=control_hz)
     if scenario.slow_at_call is not None:
         # + the runtime's warm-up calls, which come first
         from .runtime import WARM_UP_CALLS

@@ -66,6 +66,11 @@ def run_hil(
             f"run_hil: the simulator steps at {control_hz} Hz x {bridge.speedup} but the "
             f"runtime runs at {runtime.control_hz} Hz x {runtime.speedup}; make them equal"
         )
+    if runtime.max_sensor_age_s <= 1.0 / control_hz:
+        raise ValueError(
+            f"run_hil: the bridge sends one reading per control period ({1 / control_hz:.3f} s);"
+            f" a watchdog age of {runtime.max_sensor_age_s} s would call every gap stale"
+        )
     if isinstance(controller, str | Path):
         controller = load_controller(controller, sensors=layout.names, control_hz=control_hz)
     deployed = controller
