@@ -121,6 +121,16 @@ class LoopCounters:
     faults: Counter = field(default_factory=Counter)
 
 
+def check_inputs(controller: DeployedController, layout: SensorLayout) -> None:
+    """Refuse a controller that reads a sensor the machine does not send."""
+    missing = [n for n in controller.input_names if n not in layout.names]
+    if missing:
+        raise ValueError(
+            f"controller {controller.name!r} reads sensors {missing} that the machine's "
+            f"layout does not send; layout: {layout.names}"
+        )
+
+
 class ControlLoop:
     """See the module docstring.
 
@@ -145,12 +155,7 @@ class ControlLoop:
         on_fault: Callable[[float, Fault, str], None] | None = None,
         on_reading: Callable[[SensorPacket, float], None] | None = None,
     ) -> None:
-        missing = [n for n in controller.input_names if n not in layout.names]
-        if missing:
-            raise ValueError(
-                f"controller {controller.name!r} reads sensors {missing} that the machine's "
-                f"layout does not send; layout: {layout.names}"
-            )
+        check_inputs(controller, layout)
         self.controller, self.layout, self.settings = controller, layout, settings
         self.clock, self.send = clock, send
         self.on_command, self.on_fault, self.on_reading = on_command, on_fault, on_reading

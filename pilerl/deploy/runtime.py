@@ -18,7 +18,7 @@ from pathlib import Path
 
 from .controllers import DeployedController
 from .episode_log import DeploymentLog, summarize
-from .loop import ControlLoop, RuntimeSettings
+from .loop import ControlLoop, RuntimeSettings, check_inputs
 from .packets import SensorFlag, SensorLayout, SensorPacket
 
 MAX_DATAGRAM = 2048  # bytes; anything longer is truncated by the socket and then refused
@@ -56,6 +56,7 @@ class ControlRuntime:
         run_dir: str | Path | None = None,
         runtime_kind: str = "",
     ) -> None:
+        check_inputs(controller, layout)  # before anything is written or bound
         self.settings = settings
         self.log = (
             DeploymentLog(
