@@ -1,0 +1,121 @@
+"""Command line: the runtime, the simulator bridge, and the fault-injection table.
+
+    python -m pilerl.deploy runtime dannet.onnx --port 47000 --run-dir runs/deploy
+    python -m pilerl.deploy bridge --port 47000 --episodes 3 --speedup 5
+    python -m pilerl.deploy rearm --port 47000          # resume after a fault
+    python -m pilerl.deploy faults dannet.onnx --cases 3 --speedup 4
+
+The Hydra recipe ``recipes/deploy.py`` calls the same functions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from pilerl.runtime import limit_threads
+
+
+def _env_kwargs(args) -> dict:
+    return {"condition": args.condition, "control_hz": args.control_hz}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m pilerl.deploy", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    runtime = sub.add_parser("runtime", help="serve a controller over UDP")
+    runtime.add_argument("controller", help=".onnx export, .pt checkpoint or 'scripted'")
+    runtime.add_argument("--host", default="127.0.0.1")
+    runtime.add_argument("--port", type=int, default=47000)
+    runtime.add_argument("--run-dir", default="outputs/deploy/cli")
+    runtime.add_argument("--max-seconds", type=float, default=60.0)
+    runtime.add_argument("--episodes", type=int, default=None)
+    runtime.add_argument("--max-sensor-age", type=float, default=0.15)
+    bridge = sub.add_parser("bridge", help="run the simulator as the machine")
+    bridge.add_argument("--runtime-host", default="127.0.0.1")
+    bridge.add_argument("--port", type=int, default=47000, help="the runtime's port")
+    bridge.add_argument("--episodes", type=int, default=1)
+    bridge.add_argument("--seed", type=int, default=1, help="evaluator base seed")
+    rearm = sub.add_parser("rearm", help="ask a runtime to resume after a fault")
+    rearm.add_argument("--runtime-host", default="127.0.0.1")
+    rearm.add_argument("--port", type=int, default=47000, help="the runtime's port")
+    faults = sub.add_parser("faults", help="fault-injection table against the simulator")
+    faults.add_argument("controller")
+    faults.add_argument("--cases", type=int, default=1)
+    faults.add_argument("--max-sensor-age", type=float, default=0.15)
+    for p in (runtime, bridge, rearm, faults):
+        p.add_argument("--control-hz", type=float, default=20.0)
+        p.add_argument("--speedup", type=float, default=1.0)
+        p.add_argument("--condition", default="summer")
+    args = parser.parse_args(argv)
+    limit_threads()
+    try:
+        if args.command == "runtime":
+            summary = serve(args)
+            print(json.dumps(summary, indent=1))
+        elif args.command == "bridge":
+            from .bridge import BridgeSettings, run_bridge
+
+            settings = BridgeSettings(
+                env_kwargs=_env_kwargs(args),
+                seeds=tuple(args.seed * 100_000 + i for i in range(args.episodes)),
+                speedup=args.speedup,
+            )
+            for record in run_bridge(settings, (args.runtime_host, args.port)):
+                keys = ("seed", "success", "fill_fraction", "steps", "late_commands")
+                print(json.dumps({k: record[k] for k in keys}))
+        elif args.command == "rearm":
+            from .hil import simulator_layout
+            from .link import MachineLink
+
+            layout, _ = simulator_layout("pile_loader", _env_kwargs(args))
+            link = MachineLink(layout, (args.runtime_host, args.port))
+            link.send_rearm()
+            link.close()
+            print(f"re-arm sent to {args.runtime_host}:{args.port}")
+        else:
+            from .faults import fault_table, format_table
+            from .hil import simulator_layout
+            from .loop import RuntimeSettings
+
+            _, control_hz = simulator_layout("pile_loader", _env_kwargs(args))
+            settings = RuntimeSettings(
+                control_hz=control_hz,  # the simulator's actual rate
+                max_sensor_age_s=args.max_sensor_age,
+                speedup=args.speedup,
+            )
+            outcomes = fault_table(
+                args.controller, env_kwargs=_env_kwargs(args), runtime=settings, cases=args.cases
+            )
+            print(format_table(outcomes))
+            return 1 if any(o["crashed"] for o in outcomes) else 0
+    except (ValueError, FileNotFoundError, OSError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def serve(args) -> dict:
+    from .controllers import load_controller
+    from .hil import runtime_kind, simulator_layout
+    from .loop import RuntimeSettings
+    from .runtime import ControlRuntime
+
+    layout, _ = simulator_layout("pile_loader", _env_kwargs(args))
+    settings = RuntimeSettings(
+        control_hz=args.control_hz,
+        max_sensor_age_s=args.max_sensor_age,
+        speedup=args.speedup,
+        host=args.host,
+        port=args.port,
+    )
+    controller = load_controller(args.controller, sensors=layout.names, control_hz=args.control_hz)
+    kind = runtime_kind(controller.name)
+    runtime = ControlRuntime(controller, layout, settings, run_dir=args.run_dir, runtime_kind=kind)
+    print(f"serving {controller.name} on {runtime.address[0]}:{runtime.address[1]}", flush=True)
+    return runtime.run(max_seconds=args.max_seconds, episodes=args.episodes)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
