@@ -395,8 +395,21 @@ class _Run:
         started, wall_before = time.perf_counter(), state["wall_s"]
         total_frames = sum(stage.frames for stage in config.curriculum.stages)
         budgeted = self.deadline is not None  # then the bar counts the budget's seconds
+        if budgeted and self.deadline - self.reserve_s() - started < 0.2 * 60 * (
+            config.time_budget_minutes
+        ):
+            log.warning(
+                "time_budget_minutes=%g: the evaluations take about %.0f s of it, leaving "
+                "%.0f s to train; raise the budget or lower evaluation.episodes / "
+                "evaluation.final_episodes",
+                config.time_budget_minutes,
+                started - (self.deadline - 60 * config.time_budget_minutes) + self.reserve_s(),
+                max(0.0, self.deadline - self.reserve_s() - started),
+            )
         bar = tqdm(
-            total=round(self.deadline - self.reserve_s() - started) if budgeted else total_frames,
+            total=max(1, round(self.deadline - self.reserve_s() - started))
+            if budgeted
+            else total_frames,
             initial=0 if budgeted else state["frames"],
             desc=f"fine-tuning ({config.algorithm.name}, time budget)"
             if budgeted
