@@ -2,7 +2,9 @@
 
 The shell blocks of each document are read in order and run in one fresh working
 directory per document, so a command may use what an earlier command of the same
-document wrote (demonstrations, datasets, checkpoints). Recipes and ``python -m``
+document wrote (demonstrations, datasets, checkpoints). A block whose info string names a
+file (```yaml file=mapping.yaml) is written to that file when it is reached, so a
+walk-through's mapping or script is the one its commands use. Recipes and ``python -m``
 modules run in this process (imports are paid once); budgets are cut through overrides
 (``TINY``), which only shrink episodes, steps and frames. A command that cannot run here
 says why in ``NOT_RUN``: the README's two front-door commands (CI runs them as written),
@@ -23,7 +25,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
-BLOCK = re.compile(r"```(?:bash|sh|shell)\n(.*?)```", re.S)
+# a fenced block: its info string (```bash, ```python file=make_log.py) and its text
+FENCE = re.compile(r"^[ \t]*```([^\n`]*)\n(.*?)^[ \t]*```", re.S | re.M)
+SHELLS = ("bash", "sh", "shell")
 
 # overrides appended to each recipe's command: tiny budgets, one worker process
 TINY = {
@@ -49,13 +53,23 @@ TINY = {
     ],
     "scoop.py": ["video=false", "env.start_distance_range_m=[1.0,1.0]"],
     "pipeline.py": [],
+    "deploy.py": ["hil.episodes=1"],
 }
+# options appended to a ``python -m`` module's command (argparse: the last one counts)
+TINY_MODULES = {"pilerl.deploy faults": ["--cases", "1"]}
 # command prefix -> why it is not run by this test
 NOT_RUN = {
     "bash scripts/setup.sh": "the README's front door: CI (.ci/run) runs both as written",
     "ray ": "needs a Ray cluster",
     "python recipes/record.py --multirun hydra/launcher=ray_cluster": "needs a Ray cluster",
     "python recipes/train_bc.py --multirun hydra/launcher=ray_cluster": "needs a Ray cluster",
+    "python -m pilerl.deploy runtime": "serves until a machine connects (a second terminal); "
+    "tests/test_deploy_runtime.py runs it against a bridge",
+    "python -m pilerl.deploy bridge": "the second terminal of the runtime above",
+    "python -m pilerl.deploy rearm": "talks to a running runtime (tests/test_deploy_runtime.py)",
+    "python recipes/deploy.py controller=outputs/deploy_try/nnetv2.onnx env.control_hz=3": (
+        "serves until a machine connects; the mode=hil commands run the same runtime"
+    ),
 }
 
 
@@ -64,6 +78,7 @@ class Command:
     document: Path
     line: int
     text: str
+    writes: str | None = None  # a file block: the file's name (``text`` is its content)
 
     @property
     def argv(self) -> list[str]:
@@ -73,16 +88,26 @@ class Command:
         return words
 
     def __str__(self) -> str:
-        return f"{self.document.relative_to(ROOT)}:{self.line}: {self.text}"
+        where = f"{self.document.relative_to(ROOT)}:{self.line}"
+        return f"{where}: file {self.writes}" if self.writes else f"{where}: {self.text}"
 
 
-def document_commands(document: Path) -> list[Command]:
-    """The commands of ``document``'s shell blocks, continuation lines joined."""
+def document_steps(document: Path) -> list[Command]:
+    """The document's commands and file blocks in reading order (continuations joined)."""
     text = document.read_text()
-    commands = []
-    for block in BLOCK.finditer(text):
-        first_line = text[: block.start(1)].count("\n") + 1
-        lines = block.group(1).splitlines()
+    steps = []
+    for fence in FENCE.finditer(text):
+        info, body = fence.group(1).split(), fence.group(2)
+        first_line = text[: fence.start(2)].count("\n") + 1
+        named = [word.removeprefix("file=") for word in info if word.startswith("file=")]
+        if named:
+            indent = len(body) - len(body.lstrip(" "))
+            content = "\n".join(line[indent:] for line in body.splitlines()) + "\n"
+            steps.append(Command(document, first_line, content, writes=named[0]))
+            continue
+        if not info or info[0] not in SHELLS:
+            continue
+        lines = body.splitlines()
         i = 0
         while i < len(lines):
             start, command = i, lines[i]
@@ -92,8 +117,12 @@ def document_commands(document: Path) -> list[Command]:
             i += 1
             command = command.strip()
             if command and not command.startswith("#"):
-                commands.append(Command(document, first_line + start, command))
-    return commands
+                steps.append(Command(document, first_line + start, command))
+    return steps
+
+
+def document_commands(document: Path) -> list[Command]:
+    return [step for step in document_steps(document) if step.writes is None]
 
 
 def not_run_reason(command: Command) -> str | None:
@@ -103,6 +132,9 @@ def not_run_reason(command: Command) -> str | None:
 
 def run_command(command: Command) -> None:
     """Run one documented command in this process, with ``TINY`` budgets for recipes."""
+    if command.writes is not None:
+        Path(command.writes).write_text(command.text)
+        return
     argv = command.argv
     if not argv:
         raise AssertionError(f"{command}: not a command")
@@ -111,8 +143,14 @@ def run_command(command: Command) -> None:
     old_argv = sys.argv
     try:
         if argv[0] == "-m":
-            sys.argv = [argv[1], *argv[2:]]
+            extra = next(
+                (v for k, v in TINY_MODULES.items() if " ".join(argv[1:]).startswith(k)), []
+            )
+            sys.argv = [argv[1], *argv[2:], *extra]
             runpy.run_module(argv[1], run_name="__main__", alter_sys=True)
+        elif argv[0].endswith(".py") and Path(argv[0]).is_file():  # a script of the document
+            sys.argv = list(argv)
+            runpy.run_path(argv[0], run_name="__main__")
         elif argv[0].startswith("recipes/"):
             recipe = ROOT / argv[0]
             sys.argv = [str(recipe), *argv[1:], *TINY.get(recipe.name, [])]
@@ -130,13 +168,18 @@ def test_every_documented_command_is_run_or_says_why_not():
     assert len(commands) > 30
     for command in commands:
         argv = command.argv
-        runnable = argv and (argv[0] == "-m" or argv[0].startswith("recipes/"))
+        written = {s.writes for s in document_steps(command.document) if s.writes}
+        runnable = argv and (
+            argv[0] == "-m" or argv[0].startswith("recipes/") or argv[0] in written
+        )
         assert runnable or not_run_reason(command), f"{command}: neither run nor excused"
 
 
 @pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: p.name)
 def test_documented_commands_run_as_written(document, tmp_path, monkeypatch):
-    commands = [c for c in document_commands(document) if not_run_reason(c) is None]
+    commands = [
+        c for c in document_steps(document) if c.writes is not None or not_run_reason(c) is None
+    ]
     if not commands:
         pytest.skip(f"{document.name} has no command to run here")
     monkeypatch.chdir(tmp_path)
