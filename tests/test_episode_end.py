@@ -68,9 +68,7 @@ def test_torchrl_rollouts_never_step_an_ended_episode(num_envs, break_when_any_d
 
 def test_torchrl_collector_resets_ended_episodes():
     env = make_torchrl_env("toy_cart", seed=0)
-    collector = Collector(
-        env, policy=None, frames_per_batch=MAX_STEPS, total_frames=3 * MAX_STEPS
-    )
+    collector = Collector(env, policy=None, frames_per_batch=MAX_STEPS, total_frames=3 * MAX_STEPS)
     ends = 0
     for batch in collector:  # 3 episodes' worth of steps, each ended one reset
         ends += int(batch["next", "done"].sum())
