@@ -318,7 +318,9 @@ class EpisodeStore:
         dtype and shape; extra per-row columns (e.g. ``phase``) only at the top level."""
         validate_episode(td, list(self.sensors), action_dim=len(self.controls), where=where)
         layouts = self._leaf_layouts(int(td.batch_size[0]))
-        for key, value in td.items(include_nested=True, leaves_only=True):
+        # every non-TensorDict value counts as a leaf, so non-tensor data are seen too
+        plain_leaf = lambda cls: not issubclass(cls, TensorDict)  # noqa: E731
+        for key, value in td.items(include_nested=True, leaves_only=True, is_leaf=plain_leaf):
             if not isinstance(value, torch.Tensor):
                 raise SchemaError(f"{where}: {key!r} is not a tensor ({type(value).__name__})")
             _check_leaf(key, value.dtype, tuple(value.shape), layouts, where=where)
