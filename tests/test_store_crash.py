@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import pickle
 import random
 import shutil
 import signal
@@ -296,23 +295,22 @@ class Payload:
 
 
 def test_a_pickled_leaf_is_refused_without_running_it(tmp_path, monkeypatch):
+    """Issue 13: an episode folder with a pickled leaf ran its payload on load."""
     marker = tmp_path / "pwned"
     monkeypatch.setenv("PILERL_PWNED", str(marker))
     store = new_store(tmp_path / "ds", n_episodes=1)
     folder = tmp_path / "ds" / "episodes" / "ep_000000"
-    # what tensordict writes for a non-tensor leaf: a description and a pickle file
-    meta = json.loads((folder / "meta.json").read_text())
-    meta["evil"] = {"type": "NonTensorData"}
-    (folder / "meta.json").write_text(json.dumps(meta))
-    (folder / "evil").mkdir()
-    (folder / "evil" / "meta.json").write_text(
-        json.dumps({"_type": "<class 'tensordict.tensorclass.NonTensorData'>", "is_pickle": True})
-    )
-    (folder / "evil" / "pickle.pkl").write_bytes(pickle.dumps(Payload()))
-    with pytest.raises(SchemaError, match=r"ep_000000.*'evil' is not a tensor leaf"):
+    evil = store.load(0).to_tensordict()
+    evil["evil"] = Payload()  # tensordict pickles what it cannot store as a tensor
+    shutil.rmtree(folder)
+    evil.memmap_(prefix=folder)
+    assert (folder / "evil" / "other.pickle").is_file()
+    with pytest.raises(SchemaError, match=r"ep_000000: 'evil' is not a tensor leaf"):
         store.load(0)
     with pytest.raises(SchemaError, match="ep_000000"):
         build_dataset(store, tmp_path / "out", successful_only=False, rate_hz=None)
+    with pytest.raises(SchemaError, match="ep_000000"):
+        store.to_tensordict()
     assert not marker.exists()
     assert not (tmp_path / "out").exists()
 
