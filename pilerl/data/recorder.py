@@ -186,7 +186,7 @@ def plan_description(plan: RecordingPlan) -> dict:
     JSON values."""
     description = dataclasses.asdict(plan)
     del description["n_episodes"]
-    return json.loads(json.dumps(description))
+    return json.loads(json.dumps(description, default=repr))
 
 
 def claim_plan(store: EpisodeStore, plan: RecordingPlan) -> None:
