@@ -143,8 +143,9 @@ def _downsampling_factor(source: EpisodeStore, meta: EpisodeMeta, rate_hz: float
 @contextlib.contextmanager
 def _dataset_build(out_root: Path) -> Iterator[Path]:
     """A fresh hidden directory beside ``out_root`` to build into, under a lock on the
-    parent directory (one build of a name at a time); leftovers of killed builds of the
-    same name are removed first, and the scratch directory is removed on any failure."""
+    parent directory (``flock``; no lock file is left behind, and builds into one parent
+    directory take turns); leftovers of killed builds of the same name are removed
+    first, and the scratch directory is removed on any failure."""
     parent = out_root.parent
     parent.mkdir(parents=True, exist_ok=True)
     prefix = f".{out_root.name}{BUILD_PREFIX}"
