@@ -130,13 +130,20 @@ APPEND_LOOP = """
                                 exist_ok=True)
     print("ready", flush=True)
     for seed in range({first}, {first} + {count}):
-        store.extend([(episode(12, seed), EpisodeMeta(rate_hz=20.0, seed=seed))],
-                     identity=lambda m: m.seed)
+        {append}
         print("committed", seed, flush=True)
 """
 
 
-def append_loop(root: Path, first: int, count: int) -> subprocess.Popen:
+def append_loop(root: Path, first: int, count: int, *, skip_stored: bool = False):
+    """A process appending episodes of seeds ``first ..``; ``skip_stored``: each seed once
+    even if another writer stored it (``extend(identity=...)``)."""
+    new = "(episode(12, seed), EpisodeMeta(rate_hz=20.0, seed=seed))"
+    append = (
+        f"store.extend([{new}], identity=lambda m: m.seed)"
+        if skip_stored
+        else f"store.append(*{new})"
+    )
     return python(
         APPEND_LOOP.format(
             tests=str(REPO / "tests"),
@@ -145,6 +152,7 @@ def append_loop(root: Path, first: int, count: int) -> subprocess.Popen:
             controls=CONTROLS,
             first=first,
             count=count,
+            append=append,
         )
     )
 
@@ -160,7 +168,7 @@ def test_kill_an_appending_loop_at_random_moments(tmp_path):
     rng = random.Random(13)
     root = tmp_path / "ds"
     committed: list[int] = []
-    for kill in range(4):
+    for kill in range(6):
         out = kill_after(append_loop(root, first=kill * 1000, count=400), rng.uniform(0.0, 0.6))
         committed += committed_seeds(out)
         problems = consistency_problems(root, committed)
@@ -184,7 +192,10 @@ def test_kill_an_appending_loop_at_random_moments(tmp_path):
 def test_two_writers_append_to_one_dataset_at_once(tmp_path):
     """Two processes racing on overlapping work: both succeed, each episode stored once."""
     root = tmp_path / "ds"
-    writers = [append_loop(root, first=0, count=30), append_loop(root, first=15, count=30)]
+    writers = [
+        append_loop(root, first=0, count=30, skip_stored=True),
+        append_loop(root, first=15, count=30, skip_stored=True),
+    ]
     outputs = [w.communicate(timeout=WAIT_S) for w in writers]
     assert [w.returncode for w in writers] == [0, 0], [err for _, err in outputs]
     store = EpisodeStore.open(root)
