@@ -331,6 +331,7 @@ class EpisodeStore:
         if not path.is_dir():
             raise SchemaError(f"{path}: cannot load episode (no such directory)")
         layouts = self._leaf_layouts(n_samples)
+        described = set()
         for folder, prefix in ((path, ()), (path / "next", ("next",))):
             meta_path = folder / MEMMAP_META
             try:
@@ -371,6 +372,7 @@ class EpisodeStore:
                         f"{data.name} has {actual} bytes, expected {size})"
                     )
                 expected_files.add(data.name)
+                described.add(key)
             unexpected = sorted(p.name for p in folder.iterdir() if p.name not in expected_files)
             if unexpected:
                 raise SchemaError(
@@ -379,7 +381,7 @@ class EpisodeStore:
                 )
             if prefix == () and "next" not in expected_files:
                 raise SchemaError(f"{path}: cannot load episode (no 'next' readings)")
-        missing = [k for k in required_keys(list(self.sensors)) if not _described(path, k)]
+        missing = [k for k in required_keys(list(self.sensors)) if k not in described]
         if missing:
             raise SchemaError(f"{path}: cannot load episode (missing files for {missing})")
 
@@ -465,9 +467,3 @@ def _check_leaf(key, dtype: torch.dtype, shape: tuple, layouts: dict, *, where: 
 
 def _is_shape(shape) -> bool:
     return isinstance(shape, list) and all(isinstance(n, int) and n >= 0 for n in shape)
-
-
-def _described(path: Path, key) -> bool:
-    """Whether the episode directory's ``meta.json`` files list ``key``."""
-    folder, name = (path / "next", key[1]) if isinstance(key, tuple) else (path, key)
-    return name in json.loads((folder / MEMMAP_META).read_text())
