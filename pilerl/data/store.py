@@ -397,7 +397,6 @@ class EpisodeStore:
         directories, episode directories the index does not list, temporary index files.
         None of it was ever part of the dataset."""
         episodes = self.root / EPISODES
-        episodes.mkdir(exist_ok=True)
         listed = {self._episode_dir(m["id"]).name for m in self._index["episodes"]}
         for path in episodes.iterdir():
             if path.name.startswith(TMP_PREFIX) or (
@@ -439,6 +438,8 @@ def _read_index(root: Path) -> dict:
     for key, kind in (("sensors", dict), ("controls", list), ("episodes", list)):
         if not isinstance(index.get(key), kind):
             raise SchemaError(f"{path}: index has no {key!r} ({kind.__name__})")
+    if not (root / EPISODES).is_dir():
+        raise SchemaError(f"{root}: has no {EPISODES}/ folder; not a complete pilerl dataset")
     for position, meta in enumerate(index["episodes"]):
         if not isinstance(meta, dict) or meta.get("id") != position:
             raise SchemaError(f"{path}: episode entry {position} does not have id {position}")
