@@ -22,6 +22,10 @@ from pilerl.config import register_configs
 CONF = Path(__file__).resolve().parents[1] / "conf"
 PRIMARY = sorted(p.stem for p in CONF.glob("*.yaml"))
 OUT_DIR = {"record": "out_dir", "build_dataset": "out_dir", "teleop": "out_dir"}
+# values a recipe's command line must give (never read here: no recipe runs)
+REQUIRED = {"finetune": ["checkpoint=/tmp/never-read/best.pt"]}
+# primary configs of other rooms whose settings are checked there (their own tests)
+CHECKED_ELSEWHERE = {"deploy"}
 
 register_configs()
 
@@ -30,7 +34,7 @@ def build_typed_config(name: str, overrides: list[str]):
     """What a recipe does first: compose, then build the typed config."""
     directory = f"{OUT_DIR.get(name, 'output_dir')}=/tmp/never-written"
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
-        cfg = compose(config_name=name, overrides=[directory, *overrides])
+        cfg = compose(config_name=name, overrides=[directory, *REQUIRED.get(name, []), *overrides])
     return OmegaConf.to_object(cfg)
 
 
@@ -223,11 +227,11 @@ def case_id(case) -> str:
 
 
 def test_every_primary_config_has_bad_overrides():
-    assert {config for config, _, _ in CASES} == set(PRIMARY)
+    assert {config for config, _, _ in CASES} == set(PRIMARY) - CHECKED_ELSEWHERE
     assert len(CASES) > 300
 
 
-@pytest.mark.parametrize("name", PRIMARY)
+@pytest.mark.parametrize("name", sorted(set(PRIMARY) - CHECKED_ELSEWHERE))
 def test_the_unchanged_configs_build(name):
     build_typed_config(name, [])
 
