@@ -185,7 +185,7 @@ COMBINATIONS = [
     ("finetune", ["algorithm=td3bc", "algorithm.buffer_size=10"], "algorithm.batch_size"),
     (
         "finetune",
-        ["algorithm=td3bc", "reward_weights.reward_time=2.0"],
+        ["algorithm=td3bc", "demos=/tmp/never-read", "reward_weights.reward_time=2.0"],
         "reward_weights",
     ),
     ("finetune", ["collection.backend=mpi"], "collection.backend"),
