@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+import multiprocessing
 
 import numpy as np
 import pytest
@@ -21,6 +23,7 @@ from pilerl.data import (
     make_replay_buffer,
     record_demonstrations,
 )
+from pilerl.data.recorder import claim_plan
 from pilerl.sim import make_gym_env
 
 SENSORS = {"boom_angle": "rad", "drive_pressure": "MPa"}
@@ -270,3 +273,43 @@ def test_reopening_with_other_sensors_is_refused(tmp_path):
         EpisodeStore.create(
             tmp_path / "ds", sensors={"boom_angle": "deg"}, controls=CONTROLS, exist_ok=True
         )
+
+
+def test_resuming_a_recording_with_another_plan_is_refused(tmp_path):
+    store = EpisodeStore.create(tmp_path / "demos", sensors=SENSORS, controls=CONTROLS)
+    plan = RecordingPlan("pile_loader", {"condition": "summer", "control_hz": 20.0}, 3, seed=1)
+    claim_plan(store, plan)
+    claim_plan(EpisodeStore.open(tmp_path / "demos"), dataclasses.replace(plan, n_episodes=9))
+    for changed in (
+        dataclasses.replace(plan, env_kwargs={"condition": "winter_c", "control_hz": 20.0}),
+        dataclasses.replace(plan, env_kwargs={"condition": "summer", "control_hz": 500.0}),
+        dataclasses.replace(plan, seed=2),
+        dataclasses.replace(plan, trigger_sensor="telescope_pressure"),
+    ):
+        with pytest.raises(SchemaError, match="was recorded with another plan"):
+            claim_plan(EpisodeStore.open(tmp_path / "demos"), changed)
+    assert EpisodeStore.open(tmp_path / "demos").index_entry("recording_plan")["seed"] == 1
+
+
+def test_two_recorders_into_one_dataset_both_finish_without_duplicates(tmp_path):
+    """Two processes record the same plan into one directory at once (issue 13)."""
+    env = make_gym_env("pile_loader").unwrapped
+    root = tmp_path / "demos"
+    plan = RecordingPlan("pile_loader", {"control_hz": 20.0}, n_episodes=3, seed=4)
+    EpisodeStore.create(root, sensors=env.sensor_units, controls=list(env.control_names))
+
+    def record() -> None:
+        store = EpisodeStore.open(root)
+        record_demonstrations(store, plan, workers=1, progress=False)
+
+    context = multiprocessing.get_context("fork")
+    recorders = [context.Process(target=record) for _ in range(2)]
+    for recorder in recorders:
+        recorder.start()
+    for recorder in recorders:
+        recorder.join(timeout=300)
+    assert [r.exitcode for r in recorders] == [0, 0]
+    store = EpisodeStore.open(root)
+    assert sorted(m.seed for m in store.episodes) == [plan.episode_seed(i) for i in range(3)]
+    assert [m.id for m in store.episodes] == [0, 1, 2]
+    assert all(store.load(i).batch_size[0] == m.n_samples for i, m in enumerate(store.episodes))

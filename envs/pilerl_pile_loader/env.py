@@ -178,6 +178,7 @@ class PileLoadingEnv(gym.Env):
         self._valves = np.zeros(2)
         self._pump_fraction = 0.0
         self._elapsed_s = 0.0
+        self._episode_over = True  # no episode until reset(): step() refuses
 
     # ------------------------------------------------------------------ gym API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -193,6 +194,7 @@ class PileLoadingEnv(gym.Env):
         self._valves[:] = 0.0
         self._pump_fraction = 0.0
         self._elapsed_s = 0.0
+        self._episode_over = False
         self._energy_j = 0.0
         self._steps_since_soil = 0
         self._run_physics(round(SETTLE_SECONDS / m.opt.timestep))
@@ -207,6 +209,11 @@ class PileLoadingEnv(gym.Env):
         return self._observation(), self._info(scoop_finished=False, tipped=False, parts=None)
 
     def step(self, action):
+        if self._episode_over:
+            raise RuntimeError(
+                "PileLoadingEnv.step: the episode has ended (terminated or truncated) or was "
+                "never started; call reset() before stepping again"
+            )
         u = _validate_action(action)
         energy_before = self._energy_j
         self._run_physics(self.frame_skip, command=u)
@@ -231,6 +238,7 @@ class PileLoadingEnv(gym.Env):
         self._last_fill, self._last_spilled = fill, self.soil.spilled_kg
         terminated = scoop_finished or tipped
         truncated = (not terminated) and self._elapsed_s >= self.task.max_episode_seconds - 1e-9
+        self._episode_over = terminated or truncated
         info = self._info(scoop_finished=scoop_finished, tipped=tipped, parts=parts)
         return self._observation(), float(sum(parts.values())), terminated, truncated, info
 

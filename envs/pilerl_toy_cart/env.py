@@ -26,13 +26,20 @@ class ToyCartEnv(gym.Env):
                 "velocity": spaces.Box(-10.0, 10.0, shape=(1,), dtype=np.float32),
             }
         )
+        self._episode_over = True  # no episode until reset(): step() refuses
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         self._x, self._v, self._steps = float(self.np_random.uniform(-1.0, 0.0)), 0.0, 0
+        self._episode_over = False
         return self._obs(), {}
 
     def step(self, action):
+        if self._episode_over:
+            raise RuntimeError(
+                "ToyCartEnv.step: the episode has ended (terminated or truncated) or was never "
+                "started; call reset() before stepping again"
+            )
         u = np.asarray(action, dtype=np.float64)
         if u.shape != (1,) or not np.isfinite(u).all():
             raise ValueError(f"ToyCartEnv.step: action must be 1 finite value, got {action!r}")
@@ -42,7 +49,9 @@ class ToyCartEnv(gym.Env):
         self._steps += 1
         error = abs(self._x - TARGET_M)
         terminated = error < 0.05 and abs(self._v) < 0.05
-        return self._obs(), -error, terminated, self._steps >= MAX_STEPS, {"error_m": error}
+        truncated = self._steps >= MAX_STEPS
+        self._episode_over = terminated or truncated
+        return self._obs(), -error, terminated, truncated, {"error_m": error}
 
     def _obs(self):
         return {

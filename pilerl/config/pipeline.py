@@ -12,7 +12,15 @@ from omegaconf import MISSING
 
 from pilerl.rl.config import FinetuneConfig
 
-from .schema import ClosedLoopConfig, EnvConfig, LoggerConfig, PolicyConfig, SensorsConfig
+from . import checks
+from .schema import (
+    ClosedLoopConfig,
+    EnvConfig,
+    LoggerConfig,
+    PolicyConfig,
+    SensorsConfig,
+    check_controller,
+)
 
 
 @dataclass
@@ -36,6 +44,18 @@ class PipelineDemosConfig:
     seed: int = 0
     workers: int = 2
 
+    def __post_init__(self) -> None:
+        checks.positive_int("demos.episodes", self.episodes)
+        checks.positive_int("demos.validation_episodes", self.validation_episodes)
+        checks.positive("demos.record_hz", self.record_hz)
+        checks.fraction("demos.mistake_rate", self.mistake_rate)
+        checks.non_negative_int("demos.seed", self.seed)
+        checks.positive_int("demos.workers", self.workers)
+
+    def physics_hz_ok(self, env: EnvConfig) -> bool:
+        """Whether ``env`` simulates at least one physics step per recorded sample."""
+        return env.physics_hz >= self.record_hz
+
 
 @dataclass
 class PipelineBCConfig:
@@ -50,6 +70,12 @@ class PipelineBCConfig:
     batch_size: int = 512
     learning_rate: float = 1e-3
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        checks.positive_int("bc.gradient_steps", self.gradient_steps)
+        checks.positive_int("bc.batch_size", self.batch_size)
+        checks.positive("bc.learning_rate", self.learning_rate)
+        checks.non_negative_int("bc.seed", self.seed)
 
 
 @dataclass
@@ -67,3 +93,18 @@ class PipelineConfig:
     finetune: FinetuneConfig = field(default_factory=FinetuneConfig)
     logger: LoggerConfig = field(default_factory=LoggerConfig)
     output_dir: str = MISSING
+
+    def __post_init__(self) -> None:
+        from pilerl.policies import NEURAL_CONTROLLERS
+
+        if self.policy.name != MISSING and self.policy.name not in NEURAL_CONTROLLERS:
+            raise ValueError(
+                f"policy: {self.policy.name!r} cannot be fine-tuned by RL (not "
+                f"differentiable); choose one of {list(NEURAL_CONTROLLERS)}"
+            )
+        if not self.demos.physics_hz_ok(self.env):
+            raise ValueError(
+                f"demos.record_hz ({self.demos.record_hz}) must be <= env.physics_hz "
+                f"({self.env.physics_hz})"
+            )
+        check_controller(self.policy, self.sensors, trainer=None)

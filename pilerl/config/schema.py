@@ -8,12 +8,17 @@ library arguments once, at their boundary (``EnvConfig.make_kwargs``).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
 from pilerl.operators import OperatorStyle
+
+from . import checks
+
+MAX_ANGLE_DEG = 90.0  # approach angles beyond this face away from the pile
 
 
 @dataclass
@@ -44,6 +49,33 @@ class EnvConfig:
     sensor_noise: float = 1.0
     start_distance_range_m: list[float] = field(default_factory=lambda: [1.0, 5.0])
     approach_angle_range_deg: list[float] = field(default_factory=lambda: [-10.0, 10.0])
+
+    def __post_init__(self) -> None:
+        from pilerl.sim import available_simulators
+
+        checks.one_of("env.simulator", self.simulator, available_simulators())
+        checks.name("env.condition", self.condition)
+        checks.name("env.soil", self.soil)
+        checks.positive("env.control_hz", self.control_hz)
+        checks.positive("env.physics_hz", self.physics_hz)
+        if self.physics_hz < self.control_hz:
+            raise ValueError(
+                f"env.physics_hz ({self.physics_hz}) must be >= env.control_hz "
+                f"({self.control_hz}): each control step runs at least one physics step"
+            )
+        checks.non_negative("env.sensor_noise", self.sensor_noise)
+        checks.interval("env.start_distance_range_m", self.start_distance_range_m, low=0.0)
+        checks.interval(
+            "env.approach_angle_range_deg",
+            self.approach_angle_range_deg,
+            low=-MAX_ANGLE_DEG,
+            high=MAX_ANGLE_DEG,
+        )
+        for part, values in self.condition_overrides.items():
+            if not isinstance(values, dict):
+                raise ValueError(f"env.condition_overrides.{part}: must map fields to numbers")
+            for key, value in values.items():
+                checks.finite(f"env.condition_overrides.{part}.{key}", value)
 
     def make_kwargs(self, **overrides) -> dict:
         """Keyword arguments for ``pilerl.sim.make_gym_env`` (simulator name excluded)."""
@@ -81,6 +113,12 @@ class ScoopConfig:
     camera: str = "side"
     output_dir: str = MISSING  # set by the primary YAML to Hydra's run directory
 
+    def __post_init__(self) -> None:
+        checks.names("conditions", self.conditions)
+        checks.non_negative_int("seed", self.seed)
+        checks.render_size("", self.render_width, self.render_height)
+        checks.name("camera", self.camera)
+
 
 @dataclass
 class RecordConfig:
@@ -107,6 +145,22 @@ class RecordConfig:
     workers: int = 2
     out_dir: str = MISSING
 
+    def __post_init__(self) -> None:
+        from pilerl.operators.scripted import TRIGGER_RANGES_MPA
+
+        checks.positive_int("n_episodes", self.n_episodes)
+        checks.non_negative_int("seed", self.seed)
+        checks.positive("record_hz", self.record_hz)
+        if self.env.physics_hz < self.record_hz:
+            raise ValueError(
+                f"record_hz ({self.record_hz}) must be <= env.physics_hz ({self.env.physics_hz})"
+            )
+        checks.one_of("trigger_sensor", self.trigger_sensor, sorted(TRIGGER_RANGES_MPA))
+        checks.fraction("mistake_rate", self.mistake_rate)
+        checks.positive_int("workers", self.workers)
+        if self.out_dir != MISSING:
+            checks.path("out_dir", self.out_dir)
+
 
 @dataclass
 class DatasetConfig:
@@ -122,6 +176,12 @@ class DatasetConfig:
     successful_only: bool = False
     rate_hz: float | None = None
 
+    def __post_init__(self) -> None:
+        if self.name != MISSING:
+            checks.name("dataset.name", self.name)
+        if self.rate_hz is not None:
+            checks.positive("dataset.rate_hz", self.rate_hz)
+
 
 @dataclass
 class BuildDatasetConfig:
@@ -130,6 +190,14 @@ class BuildDatasetConfig:
     dataset: DatasetConfig = field(default_factory=DatasetConfig)
     source: str = MISSING
     out_dir: str = MISSING
+
+    def __post_init__(self) -> None:
+        if MISSING in (self.source, self.out_dir):
+            return
+        checks.path("source", self.source)
+        checks.path("out_dir", self.out_dir)
+        if Path(self.source).resolve() == Path(self.out_dir).resolve():
+            raise ValueError(f"out_dir: must differ from source ({self.source!r})")
 
 
 @dataclass
@@ -141,6 +209,11 @@ class TeleopConfig:
     seed: int = 0
     operator_id: str = "person-1"
     out_dir: str = MISSING
+
+    def __post_init__(self) -> None:
+        checks.positive_int("episodes", self.episodes)
+        checks.non_negative_int("seed", self.seed)
+        checks.name("operator_id", self.operator_id)
 
 
 LOGGER_BACKENDS = ("csv", "tensorboard", "wandb", "none")
@@ -171,6 +244,12 @@ class PolicyConfig:
     name: str = MISSING
     options: dict[str, Any] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        from pilerl.policies import available_controllers
+
+        if self.name != MISSING:
+            checks.one_of("policy.name", self.name, available_controllers())
+
 
 @dataclass
 class SensorsConfig:
@@ -178,6 +257,12 @@ class SensorsConfig:
 
     s: list[str] = MISSING
     s_prime: list[str] | None = None
+
+    def __post_init__(self) -> None:
+        if self.s != MISSING:
+            checks.names("sensors.s", self.s)
+        if self.s_prime is not None:
+            checks.names("sensors.s_prime", self.s_prime)
 
 
 @dataclass
@@ -207,6 +292,22 @@ class ClosedLoopConfig:
     video_conditions: list[str] | None = None
     render_width: int = 640
     render_height: int = 360
+
+    def __post_init__(self) -> None:
+        checks.names("evaluation.conditions", self.conditions)
+        checks.non_negative_int("evaluation.episodes", self.episodes)
+        checks.non_negative_int("evaluation.seed", self.seed)
+        if self.workers is not None:
+            checks.positive_int("evaluation.workers", self.workers)
+        if self.video_conditions is not None:
+            checks.names("evaluation.video_conditions", self.video_conditions)
+            unknown = [c for c in self.video_conditions if c not in self.conditions]
+            if unknown:
+                raise ValueError(
+                    f"evaluation.video_conditions: {unknown} are not evaluated; "
+                    f"evaluation.conditions are {list(self.conditions)}"
+                )
+        checks.render_size("evaluation.", self.render_width, self.render_height)
 
     def plan(self, env: EnvConfig):
         """The ``EvaluationPlan`` of this config in ``env`` (its condition is replaced)."""
@@ -238,6 +339,12 @@ class EvaluateConfig:
     operator: OperatorStyle = field(default_factory=OperatorStyle)
     evaluation: ClosedLoopConfig = field(default_factory=ClosedLoopConfig)
     output_dir: str = MISSING
+
+    def __post_init__(self) -> None:
+        if self.checkpoint is not None:
+            checks.path("checkpoint", self.checkpoint)
+        if self.name is not None:
+            checks.name("name", self.name)
 
 
 @dataclass
@@ -277,6 +384,41 @@ class TrainBCConfig:
     env: EnvConfig = field(default_factory=EnvConfig)
     evaluation: ClosedLoopConfig = field(default_factory=lambda: ClosedLoopConfig(episodes=0))
     output_dir: str = MISSING
+
+    def __post_init__(self) -> None:
+        from pilerl.policies.registry import TRAINERS
+
+        if self.train_data != MISSING:
+            checks.path("train_data", self.train_data)
+        if self.validation_data is not None:
+            checks.path("validation_data", self.validation_data)
+        checks.positive_int("epochs", self.epochs)
+        if self.gradient_steps is not None:
+            checks.positive_int("gradient_steps", self.gradient_steps)
+        checks.positive_int("batch_size", self.batch_size)
+        checks.positive("learning_rate", self.learning_rate)
+        checks.non_negative_int("seed", self.seed)
+        if self.trainer is not None:
+            checks.one_of("trainer", self.trainer, TRAINERS)
+        checks.positive_int("ensemble_seeds", self.ensemble_seeds)
+        if self.ensemble_seeds > 1 and self.evaluation.episodes > 0:
+            raise ValueError(
+                "evaluation.episodes: an ensemble (ensemble_seeds > 1) has no one "
+                "controller to test in closed loop; set evaluation.episodes=0"
+            )
+        check_controller(self.policy, self.sensors, trainer=self.trainer)
+
+
+def check_controller(policy: PolicyConfig, sensors: SensorsConfig, *, trainer: str | None) -> None:
+    """The controller ``policy`` on ``sensors`` can be built with its options and trained
+    by ``trainer`` (``None``: its default); see ``pilerl.policies.check_controller_choice``."""
+    if MISSING in (policy.name, sensors.s):
+        return
+    from pilerl.policies.config import check_controller_choice
+
+    check_controller_choice(
+        policy.name, sensors.s, sensors.s_prime, policy.options, trainer=trainer
+    )
 
 
 def register_configs() -> None:

@@ -1,17 +1,24 @@
 """Dataset curation as in the paper: D_I (everything, full rate) and D_II (successful
-episodes only, down-sampled), plus the normalisation statistics stored with a dataset."""
+episodes only, down-sampled), plus the normalisation statistics stored with a dataset.
+
+``build_dataset`` is atomic and resumable (see its docstring): recipes call it directly."""
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import math
-from collections.abc import Callable
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import torch
 from tensordict import TensorDict
 from tqdm import tqdm
 
-from .schema import END_FLAGS, EpisodeMeta
+from .schema import END_FLAGS, EpisodeMeta, SchemaError
 from .store import EpisodeStore
 
 
@@ -58,12 +65,33 @@ def build_dataset(
 ) -> EpisodeStore:
     """Curate ``source`` into a new dataset at ``out_root`` and store its statistics.
 
+    The build is atomic: the dataset is written into a hidden directory beside
+    ``out_root`` and renamed to ``out_root`` once complete (statistics included), so a
+    killed build leaves no dataset at ``out_root`` and the same call simply runs again
+    (clearing the killed build's leftovers). A complete dataset already at ``out_root``
+    that was built by the same rule from the same source is returned as it is (a resumed
+    pipeline or sweep skips the step); any other existing directory is refused.
+    Every argument and every chosen episode's rate is checked before anything is written.
+
     Args:
         successful_only: keep only episodes whose ``success`` is True (the paper's D_II).
         rate_hz: down-sample to this rate; it must divide the source rate exactly.
             ``None`` keeps the recorded rate (the paper's D_I).
-        keep: an extra episode filter (e.g. on condition).
+        keep: an extra episode filter (e.g. on condition); a dataset built with one is
+            never reused.
     """
+    out_root = Path(out_root)
+    if rate_hz is not None and not (
+        isinstance(rate_hz, int | float) and math.isfinite(rate_hz) and rate_hz > 0
+    ):
+        raise ValueError(f"build_dataset: rate_hz must be a finite number > 0, got {rate_hz!r}")
+    rule = {
+        "source": str(Path(source.root).resolve()),
+        "source_episodes": len(source),
+        "successful_only": bool(successful_only),
+        "rate_hz": rate_hz,
+        "filtered": keep is not None,
+    }
     chosen = [
         m
         for m in source.episodes
@@ -73,27 +101,83 @@ def build_dataset(
         raise ValueError(
             f"{source.root}: no episodes left after curation (successful_only={successful_only})"
         )
-    target = EpisodeStore.create(
-        out_root, sensors=source.sensors, controls=source.controls, description=description
-    )
-    for meta in tqdm(
-        chosen, desc=f"building {Path(out_root).name}", unit="episode", disable=not progress
-    ):
-        episode = source.load(meta.id).to_tensordict()
-        factor = 1
-        if rate_hz is not None:
-            ratio = meta.rate_hz / rate_hz
-            factor = round(ratio)
-            if factor < 1 or not math.isclose(ratio, factor, rel_tol=1e-6):
-                raise ValueError(
-                    f"{source.root} episode {meta.id}: rate {meta.rate_hz} Hz is "
-                    f"not a whole multiple of {rate_hz} Hz"
-                )
-        new_meta = EpisodeMeta.from_json({**meta.to_json(), "rate_hz": meta.rate_hz / factor})
-        new_meta.operator = {**new_meta.operator, "source_episode": meta.id}
-        target.append(downsample_episode(episode, factor), new_meta)
-    target.set_stats(compute_stats(target))
-    return target
+    factors = [_downsampling_factor(source, meta, rate_hz) for meta in chosen]
+    with _dataset_build(out_root) as scratch:
+        if out_root.exists() and not (out_root.is_dir() and not any(out_root.iterdir())):
+            return _finished_build(out_root, rule)
+        target = EpisodeStore.create(
+            scratch, sensors=source.sensors, controls=source.controls, description=description
+        )
+        for meta, factor in tqdm(
+            list(zip(chosen, factors, strict=True)),
+            desc=f"building {out_root.name}",
+            unit="episode",
+            disable=not progress,
+        ):
+            episode = source.load(meta.id).to_tensordict()
+            new_meta = EpisodeMeta.from_json({**meta.to_json(), "rate_hz": meta.rate_hz / factor})
+            new_meta.operator = {**new_meta.operator, "source_episode": meta.id}
+            target.append(downsample_episode(episode, factor), new_meta)
+        target.set_index_entry("curation", rule)
+        target.set_stats(compute_stats(target))
+        scratch.rename(out_root)  # atomic; replaces an empty directory
+    return EpisodeStore.open(out_root)
+
+
+BUILD_PREFIX = ".building-"
+
+
+def _downsampling_factor(source: EpisodeStore, meta: EpisodeMeta, rate_hz: float | None) -> int:
+    if rate_hz is None:
+        return 1
+    ratio = meta.rate_hz / rate_hz
+    factor = round(ratio)
+    if factor < 1 or not math.isclose(ratio, factor, rel_tol=1e-6):
+        raise ValueError(
+            f"{source.root} episode {meta.id}: rate {meta.rate_hz} Hz is "
+            f"not a whole multiple of {rate_hz} Hz"
+        )
+    return factor
+
+
+@contextlib.contextmanager
+def _dataset_build(out_root: Path) -> Iterator[Path]:
+    """A fresh hidden directory beside ``out_root`` to build into, under a lock on the
+    parent directory (``flock``; no lock file is left behind, and builds into one parent
+    directory take turns); leftovers of killed builds of the same name are removed
+    first, and the scratch directory is removed on any failure."""
+    parent = out_root.parent
+    parent.mkdir(parents=True, exist_ok=True)
+    prefix = f".{out_root.name}{BUILD_PREFIX}"
+    descriptor = os.open(parent, os.O_RDONLY)
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX)
+        for leftover in parent.glob(f"{prefix}*"):
+            shutil.rmtree(leftover, ignore_errors=True)
+        scratch = Path(tempfile.mkdtemp(prefix=prefix, dir=parent))
+        try:
+            yield scratch
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
+    finally:
+        os.close(descriptor)  # releases the lock
+
+
+def _finished_build(out_root: Path, rule: dict) -> EpisodeStore:
+    """The dataset already at ``out_root`` if the same rule built it, else a clear error."""
+    try:
+        existing = EpisodeStore.open(out_root)
+    except (FileNotFoundError, SchemaError) as error:
+        raise FileExistsError(
+            f"{out_root}: exists and is not a dataset ({error}); choose another out_dir"
+        ) from None
+    built_by = existing.index_entry("curation")
+    if rule["filtered"] or built_by != rule or existing.stats is None:
+        raise FileExistsError(
+            f"{out_root}: a dataset already exists here, built by {built_by}, not by {rule}; "
+            "choose another out_dir"
+        )
+    return existing
 
 
 def compute_stats(store: EpisodeStore) -> dict:

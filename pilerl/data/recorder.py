@@ -2,12 +2,14 @@
 
 ``record_demonstrations`` draws one operator style per episode (``sample_style``), runs
 the episodes in worker processes (one intra-op thread each) and appends them, in episode
-order, to an ``EpisodeStore`` from this process only, so the store has a single writer.
+order, to an ``EpisodeStore`` from this process only (the store also takes a lock, so
+several recording processes may share one dataset).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 from collections.abc import Callable, Iterator
@@ -24,7 +26,7 @@ from pilerl.operators import ScriptedScoopOperator, phase_index, sample_style
 from pilerl.runtime import process_pool
 from pilerl.sim import make_gym_env
 
-from .schema import EpisodeMeta, make_episode
+from .schema import EpisodeMeta, SchemaError, make_episode
 from .store import EpisodeStore
 
 
@@ -132,7 +134,7 @@ def _record_one(plan: RecordingPlan, index: int) -> tuple[TensorDict, EpisodeMet
 
 
 def _episodes(
-    plan: RecordingPlan, indices: range, workers: int
+    plan: RecordingPlan, indices: list[int], workers: int
 ) -> Iterator[tuple[TensorDict, EpisodeMeta]]:
     if workers <= 1:
         for i in indices:
@@ -151,22 +153,75 @@ def record_demonstrations(
 ) -> list[EpisodeMeta]:
     """Record ``plan.n_episodes`` episodes into ``store``; returns their metadata.
 
-    Recording resumes: episodes already in the store (by count) are skipped, so an
-    interrupted recording can be started again with the same plan.
+    Recording resumes: episodes already in the store (by seed) are skipped, so an
+    interrupted recording can be started again with the same plan. A store holding a
+    recording of another plan (simulator, its arguments, seed, operators) is refused
+    rather than mixed. Several processes may record the same plan into one store at
+    once: each episode is stored once (the store skips seeds it already holds).
     """
+    claim_plan(store, plan)
     workers = workers if workers is not None else min(os.cpu_count() or 1, plan.n_episodes)
-    todo = range(len(store), plan.n_episodes)
+    todo = _missing_indices(store, plan)
     metas = []
     bar = tqdm(
         total=plan.n_episodes,
-        initial=len(store),
+        initial=plan.n_episodes - len(todo),
         desc="recording",
         unit="episode",
         disable=not progress,
     )
     for episode, meta in _episodes(plan, todo, workers):
-        metas.append(store.append(episode, meta))
+        metas.extend(store.extend([(episode, meta)], identity=_episode_seed))
         bar.update()
         bar.set_postfix(success=f"{sum(m.success for m in store.episodes)}/{len(store)}")
     bar.close()
     return metas
+
+
+PLAN_ENTRY = "recording_plan"
+
+
+def plan_description(plan: RecordingPlan) -> dict:
+    """What makes two recordings the same plan (everything but the episode count), as
+    JSON values."""
+    description = dataclasses.asdict(plan)
+    del description["n_episodes"]
+    return json.loads(json.dumps(description, default=repr))
+
+
+def claim_plan(store: EpisodeStore, plan: RecordingPlan) -> None:
+    """Write ``plan`` into ``store``'s index, or check that it is the plan already there."""
+    wanted = plan_description(plan)
+    if store.index_entry(PLAN_ENTRY) is None and len(store):
+        seeds = {plan.episode_seed(i) for i in range(max(plan.n_episodes, len(store)))}
+        foreign = [
+            m.id
+            for m in store.episodes
+            if m.source != "sim"
+            or m.seed not in seeds
+            or m.condition != str(plan.env_kwargs.get("condition", m.condition))
+        ]
+        if foreign:
+            raise SchemaError(
+                f"{store.root}: episodes {foreign[:5]} were not recorded by this plan "
+                f"({wanted}); record into another out_dir"
+            )
+    recorded = store.claim_index_entry(PLAN_ENTRY, wanted)
+    if recorded != wanted:
+        changed = sorted(k for k in {*wanted, *recorded} if wanted.get(k) != recorded.get(k))
+        then = {k: recorded.get(k) for k in changed}
+        now = {k: wanted.get(k) for k in changed}
+        raise SchemaError(
+            f"{store.root}: was recorded with another plan ({then}, not {now}); "
+            "record into another out_dir"
+        )
+
+
+def _episode_seed(meta: EpisodeMeta) -> int | None:
+    return meta.seed
+
+
+def _missing_indices(store: EpisodeStore, plan: RecordingPlan) -> list[int]:
+    store.refresh()
+    recorded = {m.seed for m in store.episodes}
+    return [i for i in range(plan.n_episodes) if plan.episode_seed(i) not in recorded]

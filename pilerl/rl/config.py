@@ -234,6 +234,12 @@ class FinetuneConfig:
     time_budget_minutes: float = 0.0
     output_dir: str = MISSING
 
+    def __post_init__(self) -> None:
+        # the algorithm group fills ``algorithm``; a config built without one is checked
+        # when it is finally used (``finetune`` validates again)
+        if self.algorithm is not MISSING and self.algorithm != MISSING:
+            validate_finetune_config(self, inputs_exist=False)
+
 
 def uses_demos(config: FinetuneConfig) -> bool:
     """Whether the learner reads the demonstrations (PPO's ``bc_demo`` regulariser, TD3+BC
@@ -247,12 +253,22 @@ def uses_demos(config: FinetuneConfig) -> bool:
 
 
 def _positive(where: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+    if not (
+        isinstance(value, (int, float))
+        and not isinstance(value, bool)
+        and math.isfinite(value)
+        and value > 0
+    ):
         raise ValueError(f"{where}: must be a finite number > 0, got {value!r}")
 
 
 def _non_negative(where: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+    if not (
+        isinstance(value, (int, float))
+        and not isinstance(value, bool)
+        and math.isfinite(value)
+        and value >= 0
+    ):
         raise ValueError(f"{where}: must be a finite number >= 0, got {value!r}")
 
 
@@ -263,6 +279,11 @@ def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = Tru
     pipeline that validates its settings before the steps that write them).
     """
     algorithm = config.algorithm
+    if not isinstance(algorithm, PPOConfig | TD3BCConfig):
+        raise ValueError(
+            f"algorithm: must be one of the algorithm group's configs {list(ALGORITHMS)}, "
+            f"got {algorithm!r}"
+        )
     if getattr(algorithm, "name", None) not in ALGORITHMS:
         raise ValueError(
             f"algorithm: unknown {getattr(algorithm, 'name', algorithm)!r}; "
@@ -279,6 +300,12 @@ def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = Tru
             _positive(f"algorithm.{name}", getattr(algorithm, name))
         for name in ("entropy_coeff", "critic_coeff", "regularizer_weight"):
             _non_negative(f"algorithm.{name}", getattr(algorithm, name))
+        if not 0 <= algorithm.lmbda <= 1:
+            raise ValueError(f"algorithm.lmbda: must lie in [0, 1], got {algorithm.lmbda}")
+        if algorithm.clip_epsilon >= 1:
+            raise ValueError(
+                f"algorithm.clip_epsilon: must lie in (0, 1), got {algorithm.clip_epsilon}"
+            )
         if algorithm.regularizer not in REGULARIZERS:
             raise ValueError(
                 f"algorithm.regularizer: unknown {algorithm.regularizer!r}; "
@@ -293,6 +320,13 @@ def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = Tru
             _positive(f"algorithm.{name}", getattr(algorithm, name))
         for name in ("alpha", "policy_noise", "noise_clip", "exploration_sigma"):
             _non_negative(f"algorithm.{name}", getattr(algorithm, name))
+        if algorithm.tau > 1:
+            raise ValueError(f"algorithm.tau: must lie in (0, 1], got {algorithm.tau}")
+        if algorithm.batch_size > algorithm.buffer_size:
+            raise ValueError(
+                f"algorithm.batch_size ({algorithm.batch_size}) exceeds algorithm.buffer_size "
+                f"({algorithm.buffer_size})"
+            )
         if not 0 <= algorithm.demo_fraction <= 1:
             raise ValueError(
                 f"algorithm.demo_fraction: must lie in [0, 1], got {algorithm.demo_fraction}"
@@ -306,6 +340,13 @@ def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = Tru
                     "TD3+BC with demo_fraction > 0 needs every weight = 1.0, got "
                     f"{dict(config.reward_weights)}"
                 )
+    if not algorithm.critic_hidden or not all(
+        isinstance(w, int) and not isinstance(w, bool) and w >= 1 for w in algorithm.critic_hidden
+    ):
+        raise ValueError(
+            f"algorithm.critic_hidden: must list layer widths >= 1, got {algorithm.critic_hidden}"
+        )
+    _non_negative("algorithm.critic_warmup_batches", algorithm.critic_warmup_batches)
     if not 0 < algorithm.gamma <= 1:
         raise ValueError(f"algorithm.gamma: must lie in (0, 1], got {algorithm.gamma}")
     if not config.curriculum.stages:
@@ -351,6 +392,15 @@ def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = Tru
     _positive("evaluation.workers", evaluation.workers)
     if not 0 < evaluation.confidence < 1:
         raise ValueError(f"evaluation.confidence: must lie in (0, 1), got {evaluation.confidence}")
+    unknown = sorted(set(evaluation.video_conditions) - set(evaluation.groups))
+    if unknown:
+        raise ValueError(
+            f"evaluation.video_conditions: groups {unknown} are not in evaluation.groups "
+            f"{sorted(evaluation.groups)}"
+        )
+    _non_negative("evaluation.seed", evaluation.seed)
+    _non_negative("evaluation.final_seed", evaluation.final_seed)
+    _non_negative("seed", config.seed)
     _positive("checkpoint_every_frames", config.checkpoint_every_frames)
     _non_negative("time_budget_minutes", config.time_budget_minutes)
 
