@@ -36,7 +36,7 @@ TINY = {
     "train_bc.py": [
         "gradient_steps=4",
         "epochs=1",
-        "evaluation.episodes=1",
+        "evaluation.episodes=1",  # left out for ensembles, which evaluate nothing
         "evaluation.workers=1",
         "evaluation.videos=false",
     ],
@@ -153,7 +153,10 @@ def run_command(command: Command) -> None:
             runpy.run_path(argv[0], run_name="__main__")
         elif argv[0].startswith("recipes/"):
             recipe = ROOT / argv[0]
-            sys.argv = [str(recipe), *argv[1:], *TINY.get(recipe.name, [])]
+            tiny = TINY.get(recipe.name, [])
+            if "ensemble_seeds" in command.text or "exp4_offline_validation" in command.text:
+                tiny = [o for o in tiny if not o.startswith("evaluation.episodes")]
+            sys.argv = [str(recipe), *argv[1:], *tiny]
             runpy.run_path(str(recipe), run_name="__main__")
         else:
             raise AssertionError(f"{command}: add it to NOT_RUN with a reason, or run it here")
