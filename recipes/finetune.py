@@ -40,11 +40,12 @@ def main(cfg: DictConfig) -> float:
     """Returns the winter-or-first group's success rate after fine-tuning (best.pt)."""
     limit_threads()
     config: FinetuneConfig = OmegaConf.to_object(cfg)
+    validate_finetune_config(config, inputs_exist=False)  # checkpoint given, settings sane
     config.checkpoint = str(resolve_checkpoint(config.checkpoint))
     warn_if_other_control_rate(config.checkpoint, config.env.control_hz)
     config.evaluation.video = resolve_videos(config.evaluation.video, where="evaluation.video")
     run_dir = config.output_dir
-    validate_finetune_config(config)  # bad settings fail before any work
+    validate_finetune_config(config)  # and the inputs exist: all before any work
     inputs = {
         "checkpoint": config.checkpoint,
         "demos": config.demos if uses_demos(config) else None,

@@ -70,11 +70,19 @@ def test_scoop_config_becomes_the_typed_schema():
 
 @pytest.mark.parametrize(
     "override",
-    ["env.control_hz=fast", "seed=zero", "video=maybe"],
+    ["env.control_hz=fast", "seed=zero"],
 )
 def test_wrong_types_fail_at_composition(override):
     with pytest.raises((ConfigCompositionException, ValidationError)):
         compose_config("scoop", [override])
+
+
+def test_a_video_choice_other_than_auto_true_false_fails_when_the_config_is_built():
+    """``video`` is auto | true | false (a str: Hydra hands ``video=true`` over as a bool)."""
+    with pytest.raises(ValueError, match="video: must be one of"):
+        typed_config("scoop", ["video=maybe"])
+    for choice in ("auto", "true", "false"):
+        assert str(typed_config("scoop", [f"video={choice}"]).video).lower() == choice
 
 
 @pytest.mark.parametrize("override", ["env.colour=red", "operator.speed=1"])
@@ -147,4 +155,4 @@ def test_condition_overrides_reach_the_simulator_and_bad_ones_fail():
 
 def test_an_unknown_logger_fails_when_the_config_is_built():
     with pytest.raises(ValueError, match="logger.backend"):
-        typed_config("train_bc", ["logger.backend=wandb"])
+        typed_config("train_bc", ["logger.backend=comet"])

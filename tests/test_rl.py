@@ -355,7 +355,13 @@ def test_finetune_configs_compose_to_the_typed_schema(algorithm, curriculum):
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = compose(
             config_name="finetune",
-            overrides=[f"algorithm={algorithm}", f"curriculum={curriculum}", "output_dir=/x"],
+            overrides=[
+                f"algorithm={algorithm}",
+                f"curriculum={curriculum}",
+                "output_dir=/x",
+                "checkpoint=/x/best.pt",
+                "demos=/x/d_ii",
+            ],
         )
     config = OmegaConf.to_object(cfg)
     assert isinstance(config, FinetuneConfig)

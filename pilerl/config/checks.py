@@ -91,3 +91,12 @@ def render_size(where: str, width, height) -> None:
 def path(where: str, value) -> None:
     if not (isinstance(value, str) and value.strip()):
         raise ValueError(f"{where}: must be a path, got {value!r}")
+
+
+VIDEO_CHOICES = ("auto", "true", "false")
+
+
+def video_choice(where: str, value) -> None:
+    """``auto``, ``true`` or ``false`` (Hydra hands a str field ``True`` for ``true``)."""
+    if str(value).strip().lower() not in VIDEO_CHOICES:
+        raise ValueError(f"{where}: must be one of {list(VIDEO_CHOICES)}, got {value!r}")

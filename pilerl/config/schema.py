@@ -118,6 +118,7 @@ class ScoopConfig:
         checks.non_negative_int("seed", self.seed)
         checks.render_size("", self.render_width, self.render_height)
         checks.name("camera", self.camera)
+        checks.video_choice("video", self.video)
 
 
 @dataclass
@@ -308,6 +309,7 @@ class ClosedLoopConfig:
                     f"evaluation.conditions are {list(self.conditions)}"
                 )
         checks.render_size("evaluation.", self.render_width, self.render_height)
+        checks.video_choice("evaluation.videos", self.videos)
 
     def plan(self, env: EnvConfig):
         """The ``EvaluationPlan`` of this config in ``env`` (its condition is replaced)."""

@@ -212,7 +212,7 @@ class FinetuneConfig:
         output_dir: run directory (resumed if it holds ``last.ckpt``).
     """
 
-    checkpoint: str = MISSING
+    checkpoint: str | None = None  # required: checked by validate_finetune_config
     demos: str | None = None
     env: EnvConfig = field(default_factory=EnvConfig)
     algorithm: Any = MISSING  # PPOConfig | TD3BCConfig, chosen by the algorithm group
@@ -289,9 +289,14 @@ def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = Tru
             f"algorithm: unknown {getattr(algorithm, 'name', algorithm)!r}; "
             f"known: {list(ALGORITHMS)}"
         )
+    if not config.checkpoint:
+        raise ValueError(
+            "checkpoint: required: a train_bc run directory or its best.pt "
+            "(e.g. checkpoint=outputs/bc/dannet)"
+        )
     if inputs_exist and not Path(config.checkpoint).is_file():
         raise FileNotFoundError(f"checkpoint: no such actor checkpoint {config.checkpoint!r}")
-    if inputs_exist and config.demos is not None and not Path(config.demos).is_dir():
+    if inputs_exist and uses_demos(config) and not Path(config.demos).is_dir():
         raise FileNotFoundError(f"demos: no such dataset directory {config.demos!r}")
     if isinstance(algorithm, PPOConfig):
         for name in ("frames_per_batch", "epochs", "minibatch_size", "regularizer_batch_size"):
