@@ -42,17 +42,19 @@ HYDRA_FILES = ("config.yaml", "overrides.yaml", "hydra.yaml")
 NOT_RESULTS = (
     "output_dir",
     "*.output_dir",
-    "workers",
-    "*.workers",
-    "*.envs_per_worker",
+    "workers",  # record: episodes are seeded one by one, whichever process records them
+    "demos.workers",
+    "evaluation.workers",  # evaluation: results do not depend on the worker count (tested)
+    "*.evaluation.workers",
     "*videos",
+    "*video",
     "*video_conditions",
     "*render_width",
     "*render_height",
     "*camera",
     "logger.*",
     "*.progress",
-)
+)  # collection workers and envs per worker change what RL collects: they stay in
 PACKAGES = ("pilerl", "torch", "torchrl", "tensordict", "mujoco", "gymnasium", "hydra-core")
 HASH_CHUNK_BYTES = 1 << 20
 
@@ -94,12 +96,16 @@ def fingerprint_path(path: str | Path) -> str:
 
 
 def flatten(settings: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Nested mappings as one mapping of dotted keys (lists and scalars are leaves)."""
+    """Nested mappings as one mapping of dotted keys; lists of mappings by index
+    (``curriculum.stages.0.frames``); other lists and scalars are leaves."""
     flat = {}
     for key, value in settings.items():
         dotted = f"{prefix}{key}"
         if isinstance(value, Mapping):
             flat |= flatten(value, f"{dotted}.")
+        elif isinstance(value, list) and value and all(isinstance(v, Mapping) for v in value):
+            for index, item in enumerate(value):
+                flat |= flatten(item, f"{dotted}.{index}.")
         else:
             flat[dotted] = value
     return flat
@@ -167,8 +173,8 @@ def begin_run(
         run_dir: the run directory (Hydra's output directory).
         settings: the resolved config as plain data (``OmegaConf.to_container``).
         inputs: name -> file or dataset directory the run reads (``None``: not used).
-        growable: dotted keys of budgets that may be raised to continue a run (a finished
-            run with a larger budget resumes instead of being skipped).
+        growable: dotted keys (glob patterns) of budgets that may be raised to continue a
+            run (a finished run with a larger budget resumes instead of being skipped).
         facts: run-specific provenance (control rate, sensor set ...).
 
     Raises :class:`RunMismatch` when the directory holds a run with other settings or
@@ -196,10 +202,15 @@ def begin_run(
                 + "; ".join(differences)
                 + ". Run into another directory (hydra.run.dir=...) to keep both."
             )
-        budgets_same = all(recorded["settings"].get(k) == flat.get(k) for k in growable)
-        if (run_dir / DONE_FILE).exists() and budgets_same:
-            return True
+        budgets = [k for k in set(recorded["settings"]) | set(flat) if _matches(k, growable)]
+        budgets_same = all(recorded["settings"].get(k) == flat.get(k) for k in budgets)
+        if (run_dir / DONE_FILE).exists():
+            if budgets_same:
+                return True
+            (run_dir / DONE_FILE).unlink()  # a larger budget: unfinished until it ends again
     run_dir.mkdir(parents=True, exist_ok=True)
+    for leftover in run_dir.glob(f".{Path(RUN_FILE).stem}.*{Path(RUN_FILE).suffix}"):
+        leftover.unlink(missing_ok=True)  # a temporary run.json of a killed write
     record = {
         "settings": flat,
         "inputs": input_prints,
@@ -215,8 +226,10 @@ def begin_run(
 
 
 def finish_run(run_dir: str | Path, metrics: Mapping[str, float | int | bool]) -> None:
-    """Write the run's scalar results and mark it finished (``metrics.json``, ``done.json``)."""
+    """Write the run's scalar results and mark it finished (``metrics.json``, ``done.json``);
+    checkpoints written after this no longer carry the run's provenance."""
     mark_done(run_dir, dict(metrics))
+    _CURRENT_RUN.clear()
 
 
 def read_run_record(run_dir: str | Path) -> dict[str, Any] | None:
@@ -246,7 +259,7 @@ def _differences(
     differences = [
         f"{key}: {before.get(key, '<unset>')!r} -> {now.get(key, '<unset>')!r}"
         for key in sorted(set(before) | set(now))
-        if key not in growable and before.get(key, "<unset>") != now.get(key, "<unset>")
+        if not _matches(key, growable) and before.get(key, "<unset>") != now.get(key, "<unset>")
     ]
     recorded_inputs = recorded.get("inputs", {})
     for name in sorted(set(recorded_inputs) | set(input_prints)):

@@ -25,6 +25,7 @@ from pilerl.deploy.controllers import load_controller
 from pilerl.deploy.hil import run_hil, runtime_kind, simulator_layout
 from pilerl.deploy.runtime import ControlRuntime
 from pilerl.io import write_text_atomic
+from pilerl.policies.checkpoint import warn_if_other_control_rate
 from pilerl.runtime import limit_threads
 
 log = logging.getLogger(__name__)
@@ -41,6 +42,8 @@ def main(cfg: DictConfig) -> None:
         )
         layout, control_hz = simulator_layout(config.env.simulator, config.env.make_kwargs())
         controller = load_controller(config.controller, sensors=layout.names, control_hz=control_hz)
+        if Path(config.controller).suffix == ".pt":  # a checkpoint knows its training rate
+            warn_if_other_control_rate(config.controller, control_hz)
     except (ValueError, FileNotFoundError) as error:
         log.error("%s", error)
         sys.exit(2)

@@ -8,7 +8,7 @@ Writes to the run directory: ``best.pt`` / ``final.pt`` (actors for ``load_actor
 ``last.ckpt`` (resumable), ``success_curve.png``, ``evaluations.json``, ``results.json``
 (before / after with Wilson intervals), ``metrics.json`` (the same, flat) and the TorchRL
 CSV log. Running again in the same
-directory resumes (also with a larger ``total_frames`` or ``time_budget_minutes``); a
+directory resumes (also with larger stage frames or ``time_budget_minutes``); a
 finished run is skipped; other settings or another checkpoint are refused (``run.json``).
 """
 
@@ -32,7 +32,7 @@ log = logging.getLogger(__name__)
 register_configs()
 register_rl_configs()
 # budgets that may be raised to continue a finished run from its last.ckpt
-GROWABLE = ("total_frames", "time_budget_minutes")
+GROWABLE = ("curriculum.stages.*.frames", "time_budget_minutes")
 
 
 @hydra.main(config_path="../conf", config_name="finetune", version_base="1.3")

@@ -61,7 +61,12 @@ def main(cfg: DictConfig) -> None:
     build_envs(plan)  # a bad condition or env setting fails before any work
     videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
     bc_dir = Path(rl_config.checkpoint).parent
-    facts = {"control_hz": config.env.control_hz, "demonstrations_hz": config.demos.record_hz}
+    facts = {
+        "control_hz": config.env.control_hz,
+        "demonstrations_hz": config.demos.record_hz,
+        "sensors": config.sensors.s,
+        "attention_sensors": config.sensors.s_prime,
+    }
     if begin_run(out, OmegaConf.to_container(cfg, resolve=True), **facts):
         log.info("%s already finished: skipping (same settings)", out)
         return

@@ -20,6 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 from pilerl.config import ScoopConfig, register_configs
 from pilerl.evaluation import plot_scoop, run_episode, write_mp4
 from pilerl.evaluation.scoop_report import summarize, write_scoop_report, write_trace_csv
+from pilerl.evaluation.video import annotate_frames, sensor_ranges
 from pilerl.operators import ScriptedScoopOperator
 from pilerl.rendering import resolve_videos
 from pilerl.runs import begin_run, finish_run
@@ -62,6 +63,7 @@ def main(cfg: DictConfig) -> None:
         episode = run_episode(
             env, operator.act, seed=config.seed, render=video, progress=f"scoop {condition}"
         )
+        ranges = sensor_ranges(env)
         env.close()
         episodes[condition] = episode
         summaries[condition] = summarize(episode)
@@ -70,7 +72,8 @@ def main(cfg: DictConfig) -> None:
         # --- artefacts a person can look at
         write_trace_csv(episode, f"{out_dir}/trace_{condition}.csv")
         if video:
-            write_mp4(episode.frames, f"{out_dir}/scoop_{condition}.mp4", fps=episode.frame_hz)
+            frames = annotate_frames(episode, condition=condition, sensor_ranges=ranges)
+            write_mp4(frames, f"{out_dir}/scoop_{condition}.mp4", fps=episode.frame_hz)
             videos.append(f"scoop_{condition}.mp4")
 
     # --- report

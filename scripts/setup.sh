@@ -19,7 +19,8 @@ pip_install torch==2.13.0
 pip_install -e ".[dev]"
 
 # Offscreen rendering (MUJOCO_GL=egl) needs an EGL library; install Mesa's if it is missing.
-if ! ldconfig -p | grep -q 'libEGL.so.1'; then
+LDCONFIG=$(command -v ldconfig || echo /sbin/ldconfig)  # /sbin may not be on PATH
+if ! "$LDCONFIG" -p 2>/dev/null | grep -q 'libEGL.so.1'; then
   if command -v apt-get >/dev/null && [ "$(id -u)" = 0 ]; then
     apt-get update -qq && apt-get install -y -qq libegl1 libgl1 libgles2 libegl-mesa0 \
       libgl1-mesa-dri >/dev/null

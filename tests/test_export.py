@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import onnxruntime
 import pytest
@@ -62,6 +64,8 @@ def test_command_line(tmp_path, capsys):
     save_actor(tmp_path / "best.pt", make_actor("nnetv2", sensors=SENSORS, stats=STATS))
     assert main([str(tmp_path / "best.pt"), "--onnx", str(tmp_path / "a.onnx")]) == 0
     assert "checked with onnxruntime" in capsys.readouterr().out
+    metadata = onnxruntime.InferenceSession(str(tmp_path / "a.onnx")).get_modelmeta()
+    assert "torch" in json.loads(metadata.custom_metadata_map["pilerl.provenance"])["packages"]
     assert main([str(tmp_path / "missing.pt"), "--onnx", str(tmp_path / "b.onnx")]) == 2
     assert "no such actor checkpoint" in capsys.readouterr().err
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ctypes.util
 import os
 import subprocess
 import sys
@@ -35,7 +36,8 @@ def test_a_plain_shell_renders_whatever_was_imported_first(imports):
     )
     assert done.returncode == 0, done.stderr[-2000:]
     backend, shape, not_blank = done.stdout.strip().splitlines()[-1].split("|")
-    assert (backend, shape, not_blank) == ("egl", "(48, 64, 3)", "1")
+    assert backend in rendering.HEADLESS_BACKENDS  # egl, or osmesa where only Mesa's is
+    assert (shape, not_blank) == ("(48, 64, 3)", "1")
 
 
 def test_videos_auto_goes_on_without_videos_when_the_machine_cannot_render(monkeypatch, caplog):
@@ -49,8 +51,12 @@ def test_videos_auto_goes_on_without_videos_when_the_machine_cannot_render(monke
         rendering.resolve_videos("sometimes")
 
 
+@pytest.mark.skipif(
+    ctypes.util.find_library("OSMesa") is not None, reason="needs a machine without OSMesa"
+)
 def test_a_machine_without_the_backend_is_detected_before_any_work(tmp_path):
-    """OSMesa is not installed here: video=true refuses before the scoop, auto warns once."""
+    """With MUJOCO_GL=osmesa and no OSMesa library, no frame can be rendered: video=true
+    refuses before the scoop, auto warns once and goes on without videos."""
     env = {**PLAIN_SHELL, "MUJOCO_GL": "osmesa", "OMP_NUM_THREADS": "1"}
     scoop = [sys.executable, "recipes/scoop.py", "conditions=[summer]"]
     args = {"cwd": ROOT, "env": env, "capture_output": True, "text": True, "timeout": 300}

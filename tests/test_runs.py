@@ -136,3 +136,33 @@ def test_checkpoints_carry_the_provenance_of_the_run_that_wrote_them(tmp_path, c
     assert not warn_if_other_control_rate(path, 20.0)
     assert warn_if_other_control_rate(path, 3.0)
     assert "trained at 20 Hz but runs at 3 Hz" in caplog.text
+
+
+def test_a_grown_curriculum_resumes_and_stays_unfinished_until_it_ends_again(tmp_path):
+    growable = ["curriculum.stages.*.frames"]
+    settings = {"curriculum": {"stages": [{"frames": 1000, "conditions": {"winter_c": 1.0}}]}}
+    begin_run(tmp_path, settings, growable=growable)
+    finish_run(tmp_path, {"frames": 1000})
+    grown = {"curriculum": {"stages": [{"frames": 2000, "conditions": {"winter_c": 1.0}}]}}
+    assert begin_run(tmp_path, grown, growable=growable) is False  # continue
+    assert begin_run(tmp_path, grown, growable=growable) is False  # killed: still unfinished
+    finish_run(tmp_path, {"frames": 2000})
+    assert begin_run(tmp_path, grown, growable=growable) is True
+    other = {"curriculum": {"stages": [{"frames": 2000, "conditions": {"summer": 1.0}}]}}
+    with pytest.raises(RunMismatch, match=r"curriculum.stages.0.conditions.summer"):
+        begin_run(tmp_path, other, growable=growable)
+
+
+def test_collection_settings_count_and_evaluation_workers_do_not(tmp_path):
+    settings = {"collection": {"workers": 1, "envs_per_worker": 8}, "evaluation": {"workers": 2}}
+    begin_run(tmp_path, settings)
+    finish_run(tmp_path, {"frames": 1})
+    assert begin_run(tmp_path, {**settings, "evaluation": {"workers": 1}}) is True
+    with pytest.raises(RunMismatch, match="collection.envs_per_worker: 8 -> 4"):
+        begin_run(tmp_path, {**settings, "collection": {"workers": 1, "envs_per_worker": 4}})
+
+
+def test_a_killed_run_record_write_leaves_nothing_behind(tmp_path):
+    (tmp_path / ".run.abc123.json").write_text("{")  # what a kill mid-write leaves
+    begin_run(tmp_path, SETTINGS)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [RUN_FILE]

@@ -71,6 +71,17 @@ def test_a_killed_run_resumes_to_the_same_weights(datasets, tmp_path):
     assert all(torch.equal(a[k], b[k]) for k in a)
 
 
+def test_resume_refuses_a_run_directory_of_another_model(datasets, tmp_path):
+    _, train, validation = datasets
+    data = train.to_tensordict()
+    settings = BCSettings(epochs=2, batch_size=64, seed=3)
+    nnetv2 = make_actor("nnetv2", sensors=S, stats=train.stats)
+    train_bc(nnetv2, data, validation, settings, run_dir=tmp_path, progress=False)
+    dannet = make_actor("dannet", sensors=S, stats=train.stats)
+    with pytest.raises(ValueError, match=r"holds a 'nnetv2' actor .* not the 'dannet'"):
+        train_bc(dannet, data, validation, settings, run_dir=tmp_path, progress=False)
+
+
 def test_best_checkpoint_loads_safely_and_acts_the_same(datasets, tmp_path):
     _, train, validation = datasets
     actor, history = train_bc(

@@ -28,7 +28,7 @@ from pilerl.sim import make_gym_env
 
 from .episode import run_episode
 from .evaluator import EvaluationPlan, evaluate, summarize, write_results
-from .video import annotate_frames, write_mp4
+from .video import annotate_frames, sensor_ranges, write_mp4
 
 log = logging.getLogger(__name__)
 SUCCESS_FILL = 0.5  # the paper: a scoop succeeds when the bucket is at least half full
@@ -138,10 +138,7 @@ def render_rollout(
     operator = controller.build(float(env.unwrapped.dt))
     operator.reset()
     episode = run_episode(env, operator.act, seed=record["seed"], render=True)
-    ranges = {
-        name: (float(np.min(space.low)), float(np.max(space.high)))
-        for name, space in env.observation_space.spaces.items()
-    }
+    ranges = sensor_ranges(env)
     env.close()
     if abs(float(episode.final_info["fill_fraction"]) - record["fill_fraction"]) > 1e-6:
         log.warning("%s: the re-rendered episode differs from the evaluated one", path)

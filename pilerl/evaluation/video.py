@@ -94,6 +94,14 @@ def annotate_frames(
     return annotated
 
 
+def sensor_ranges(env) -> dict[str, tuple[float, float]]:
+    """Each sensor's declared (low, high) from a Gymnasium env's ``Dict`` observation space."""
+    return {
+        name: (float(np.min(space.low)), float(np.max(space.high)))
+        for name, space in env.observation_space.spaces.items()
+    }
+
+
 def _short_name(sensor: str) -> str:
     """``telescope_pressure`` -> ``telescope p``; angles keep their name."""
     return sensor.replace("_pressure", " p").replace("_angle", " angle").replace("_", " ")

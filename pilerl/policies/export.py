@@ -12,6 +12,7 @@ before returning.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -22,7 +23,7 @@ from tensordict.nn import TensorDictModule
 from pilerl.io import atomic_path
 
 from .actors import actor_policy
-from .checkpoint import load_actor
+from .checkpoint import load_actor, read_provenance
 from .policy import SensorPolicy
 from .random_forest import RandomForestController
 
@@ -69,13 +70,17 @@ def export_program(actor: TensorDictModule | SensorPolicy, path: str | Path) -> 
     return path
 
 
-def export_onnx(actor: TensorDictModule | SensorPolicy, path: str | Path) -> tuple[Path, float]:
+def export_onnx(
+    actor: TensorDictModule | SensorPolicy, path: str | Path, *, provenance: dict | None = None
+) -> tuple[Path, float]:
     """Write one self-contained ONNX file and check it; returns (path, max action error).
 
     The weights are stored inside the file (these controllers are far below ONNX's 2 GB
     limit), so copying the ``.onnx`` alone is enough. The check loads the written bytes in
     onnxruntime, away from the directory it was written in, and compares its actions with
-    PyTorch's; nothing is written when it differs.
+    PyTorch's; nothing is written when it differs. ``provenance`` (e.g. the checkpoint's:
+    package versions, git commit, training rate) is kept in the model's metadata as JSON
+    under ``pilerl.provenance``.
     """
     import onnx
     import onnxruntime
@@ -99,6 +104,10 @@ def export_onnx(actor: TensorDictModule | SensorPolicy, path: str | Path) -> tup
         external = [t.name for t in model.graph.initializer if uses_external_data(t)]
         if external:
             raise ExportError(f"{path}: weights {external[:3]} were written outside the file")
+        if provenance is not None:
+            entry = model.metadata_props.add()
+            entry.key, entry.value = "pilerl.provenance", json.dumps(provenance, default=str)
+            onnx.save(model, str(tmp))
         session = onnxruntime.InferenceSession(tmp.read_bytes())  # the bytes alone
         readings = _example_readings(policy, CHECK_ROWS, seed=1)
         feeds = {key: r.numpy() for key, r in zip(policy.in_keys, readings, strict=True)}
@@ -125,7 +134,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         actor = load_actor(args.checkpoint)
         if args.onnx:
-            path, error = export_onnx(actor, args.onnx)
+            provenance = read_provenance(args.checkpoint)
+            path, error = export_onnx(actor, args.onnx, provenance=provenance)
             print(f"{path}: checked with onnxruntime, max action error {error:.1e}")
         if args.pt2:
             print(f"{export_program(actor, args.pt2)}: torch.export program")

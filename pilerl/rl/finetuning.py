@@ -311,6 +311,17 @@ class _Run:
         budget = self.config.time_budget_minutes
         if budget > 0:
             self.deadline = time.perf_counter() + 60 * budget - self.state["wall_s"]
+        if self.state["evaluation_s"] > 0:  # resumed: estimate from the evaluations so far
+            evaluation = self.config.evaluation
+            conditions = sum(len(c) for c in evaluation.groups.values())
+            episodes = conditions * (
+                (evaluation.final_episodes if self.state["before"] is not None else 0)
+                + evaluation.episodes * len(self.state["evaluations"])
+            )
+            if episodes:
+                per_episode_s = self.state["evaluation_s"] / episodes
+                self.final_eval_s = per_episode_s * conditions * evaluation.final_episodes
+                self.periodic_eval_s = per_episode_s * conditions * evaluation.episodes
 
     def reserve_s(self) -> float:
         """Time to keep for what follows training: the last periodic evaluation and the

@@ -152,7 +152,7 @@ def train_bc(
     best = math.inf
     run_dir = Path(run_dir) if run_dir is not None else None
     if run_dir is not None and (run_dir / "last.pt").exists():
-        policy, optimizer, history, best = _resume(run_dir / "last.pt", settings)
+        policy, optimizer, history, best = _resume(run_dir / "last.pt", settings, policy.config)
         actor = policy_actor(policy)
     loss_module = BCLoss(actor, loss_function="mse")
     lm_inputs = policy.controller_inputs(train)[0] if trainer == "levenberg_marquardt" else None
@@ -251,7 +251,8 @@ def _save_run(
     write_checkpoint(path, payload, allow_infinite=lambda where: where == "best")
 
 
-def _resume(path: Path, settings: BCSettings):
+def _resume(path: Path, settings: BCSettings, wanted):
+    """The training state in ``path``; refused when it trains another model or setting."""
     payload = read_checkpoint(
         path,
         expected_format=RUN_FORMAT,
@@ -266,6 +267,17 @@ def _resume(path: Path, settings: BCSettings):
             f"{path}: was trained with {saved}, not {asdict(settings)}; use a new run directory"
         )
     config = actor_config_from_json(path, payload.get("actor_config"), "actor_config")
+    if config.to_json() != wanted.to_json():
+        differing = sorted(
+            key
+            for key in set(config.to_json()) | set(wanted.to_json())
+            if config.to_json().get(key) != wanted.to_json().get(key)
+        )
+        raise ValueError(
+            f"{path}: holds a {config.controller!r} actor ({_inputs(config)}), not the "
+            f"{wanted.controller!r} ({_inputs(wanted)}) asked for; they differ in {differing}. "
+            "Use a new run directory."
+        )
     policy = rebuild_policy(path, config, payload.get("state_dict"), "state_dict")
     optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
     load_optimizer_state(path, optimizer, payload.get("optimizer"), "optimizer")
@@ -277,3 +289,9 @@ def _resume(path: Path, settings: BCSettings):
         raise CheckpointError(f"{path}: rng_state is not torch's generator state")
     torch.set_rng_state(rng_state)
     return policy, optimizer, history, best
+
+
+def _inputs(config) -> str:
+    sensors = ", ".join(config.sensors)
+    attention = getattr(config, "attention_sensors", None)
+    return f"sensors {sensors}" + (f"; attention {', '.join(attention)}" if attention else "")
