@@ -17,7 +17,7 @@ from pilerl.evaluation.evaluator import (
     evaluate,
     summarize_rows,
 )
-from pilerl.figures import plt, save_figure
+from pilerl.figures import legend_outside, plt, save_figure
 
 # never NaN, so results.json stays strict JSON (time to fill is NaN without a success)
 POOLED_FIELDS = (
@@ -100,5 +100,5 @@ def plot_success_curve(
     ax.set_title(title)
     ax.grid(alpha=0.3)
     if groups:
-        ax.legend()
+        legend_outside(ax, fontsize=8)
     return save_figure(fig, path)
