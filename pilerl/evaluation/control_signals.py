@@ -262,5 +262,6 @@ def plot_control_signals(
         legend_outside(ax, handles=handles)
     axes[-1].set_xlabel("time [s]")
     overall = ", ".join(f"{name} {mse['all']:.3g}" for name, mse in comparison.mse.items())
-    axes[0].set_title(f"{title}{': ' if title else ''}open-loop controls (MSE: {overall})")
+    heading = f"open-loop controls (MSE: {overall})"  # two lines: never wider than the axes
+    axes[0].set_title(f"{title}\n{heading}" if title else heading, fontsize=9)
     return save_figure(fig, path)
