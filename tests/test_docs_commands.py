@@ -195,5 +195,10 @@ def test_documented_commands_run_as_written(document, tmp_path, monkeypatch):
     get_reusable_executor().shutdown(wait=True)
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("OMP_NUM_THREADS", "1")
-    for command in commands:
-        run_command(command)
+    try:
+        for command in commands:
+            run_command(command)
+    finally:  # a Ray launcher run in this process leaves its local instance connected
+        ray = sys.modules.get("ray")
+        if ray is not None and ray.is_initialized():
+            ray.shutdown()
