@@ -87,10 +87,9 @@ def save_actor(path: str | Path, actor: TensorDictModule | SensorPolicy) -> Path
     return write_checkpoint(path, payload, allow_infinite=_may_be_infinite)
 
 
-def read_provenance(path: str | Path) -> dict:
-    """The provenance saved in an actor checkpoint (``{}`` for files from before it)."""
-    path = Path(path)
-    payload = read_checkpoint(
+def _read_actor_payload(path: Path) -> dict:
+    """The verified payload of an actor checkpoint (see ``checkpoint_file``)."""
+    return read_checkpoint(
         path,
         expected_format=CHECKPOINT_FORMAT,
         version=CHECKPOINT_VERSION,
@@ -98,6 +97,12 @@ def read_provenance(path: str | Path) -> dict:
         allow_infinite=_may_be_infinite,
         what="pilerl actor checkpoint",
     )
+
+
+def read_provenance(path: str | Path) -> dict:
+    """The provenance saved in an actor checkpoint (``{}`` for files from before it)."""
+    path = Path(path)
+    payload = _read_actor_payload(path)
     if "provenance" not in payload:
         return {}
     provenance = parse_json(path, payload["provenance"], "provenance")
@@ -133,14 +138,7 @@ def load_actor(path: str | Path) -> TensorDictModule:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such actor checkpoint")
-    payload = read_checkpoint(
-        path,
-        expected_format=CHECKPOINT_FORMAT,
-        version=CHECKPOINT_VERSION,
-        legacy_versions=LEGACY_VERSIONS,
-        allow_infinite=_may_be_infinite,
-        what="pilerl actor checkpoint",
-    )
+    payload = _read_actor_payload(path)
     config = actor_config_from_json(path, payload.get("config"), "config")
     policy = rebuild_policy(path, config, payload.get("state_dict"), "state_dict")
     return policy_actor(policy).eval()
