@@ -1,7 +1,7 @@
 """The main job: demonstrations → D_II → behaviour cloning → closed-loop evaluation →
 RL fine-tuning → evaluation again → a report with plots and videos.
 
-    python recipes/pipeline.py                      # built-in defaults, ~5 min on 2 cores
+    python recipes/pipeline.py                      # built-in defaults, ~3.5 min on 2 cores
     python recipes/pipeline.py policy=nnetv2 sensors=s_pt finetune.time_budget_minutes=10
 
 Everything goes under the run directory (``outputs/pipeline/<time>/``): ``demos/``,
