@@ -42,7 +42,7 @@ def main(cfg: DictConfig) -> None:
         )
         layout, control_hz = simulator_layout(config.env.simulator, config.env.make_kwargs())
         controller = load_controller(config.controller, sensors=layout.names, control_hz=control_hz)
-        if Path(config.controller).suffix == ".pt":  # a checkpoint knows its training rate
+        if Path(config.controller).suffix in (".pt", ".onnx"):  # they know their training rate
             warn_if_other_control_rate(config.controller, control_hz)
     except (ValueError, FileNotFoundError) as error:
         log.error("%s", error)

@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from pilerl.policies import make_actor, save_actor
+from pilerl.policies.checkpoint import read_provenance
 from pilerl.policies.export import ExportError, export_onnx, export_program, main
 
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
@@ -66,6 +67,7 @@ def test_command_line(tmp_path, capsys):
     assert "checked with onnxruntime" in capsys.readouterr().out
     metadata = onnxruntime.InferenceSession(str(tmp_path / "a.onnx")).get_modelmeta()
     assert "torch" in json.loads(metadata.custom_metadata_map["pilerl.provenance"])["packages"]
+    assert read_provenance(tmp_path / "a.onnx") == read_provenance(tmp_path / "best.pt")
     assert main([str(tmp_path / "missing.pt"), "--onnx", str(tmp_path / "b.onnx")]) == 2
     assert "no such actor checkpoint" in capsys.readouterr().err
 

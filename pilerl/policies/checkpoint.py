@@ -100,8 +100,21 @@ def _read_actor_payload(path: Path) -> dict:
 
 
 def read_provenance(path: str | Path) -> dict:
-    """The provenance saved in an actor checkpoint (``{}`` for files from before it)."""
+    """The provenance saved in an actor checkpoint or in an ONNX export's metadata
+    (``{}`` for files from before it)."""
     path = Path(path)
+    if path.suffix == ".onnx":
+        import onnx
+
+        try:
+            metadata = onnx.load(str(path), load_external_data=False).metadata_props
+        except Exception as error:  # noqa: BLE001 - onnx raises several kinds; name the file
+            raise CheckpointError(f"{path}: not a readable ONNX model ({error})") from None
+        text = next((p.value for p in metadata if p.key == "pilerl.provenance"), None)
+        provenance = {} if text is None else parse_json(path, text, "pilerl.provenance")
+        if not isinstance(provenance, dict):
+            raise CheckpointError(f"{path}: pilerl.provenance is not a JSON object")
+        return provenance
     payload = _read_actor_payload(path)
     if "provenance" not in payload:
         return {}
