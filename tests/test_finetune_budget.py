@@ -42,9 +42,9 @@ def test_training_stops_when_only_the_final_evaluations_fit_in_the_budget(monkey
     run.final_eval_s, run.periodic_eval_s = 18.0, 9.0  # measured before training
     assert run.reserve_s() == pytest.approx(2 * 18.0 + 9.0)  # final.pt, best.pt, last periodic
     clock.now += 120.0 - 45.0 - 1.0
-    assert not run._out_of_time(0.0, 0.0)
+    assert not run._out_of_time()
     clock.now += 1.0  # now the evaluations left would end exactly at the budget
-    assert run._out_of_time(0.0, 0.0)
+    assert run._out_of_time()
 
 
 def test_no_budget_never_stops_training(monkeypatch):
@@ -53,7 +53,7 @@ def test_no_budget_never_stops_training(monkeypatch):
     run = budgeted_run(0.0, every_frames=0)
     run.start_clock()
     clock.now += 1e6
-    assert not run._out_of_time(0.0, 0.0)
+    assert not run._out_of_time()
 
 
 def test_a_resumed_run_reserves_time_from_its_earlier_evaluations(monkeypatch):

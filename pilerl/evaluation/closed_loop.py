@@ -65,9 +65,12 @@ def run_closed_loop(
     if checkpoint is not None:  # a controller cloned at another rate acts differently
         from pilerl.policies.checkpoint import warn_if_other_control_rate
 
-        probe = make_gym_env(plan.simulator, **plan.env_kwargs, condition=plan.conditions[0])
-        warn_if_other_control_rate(checkpoint, 1.0 / float(probe.unwrapped.dt))
-        probe.close()
+        control_hz = plan.env_kwargs.get("control_hz")
+        if control_hz is None:  # the simulator's default rate: ask one env
+            probe = make_gym_env(plan.simulator, **plan.env_kwargs, condition=plan.conditions[0])
+            control_hz = 1.0 / float(probe.unwrapped.dt)
+            probe.close()
+        warn_if_other_control_rate(checkpoint, float(control_hz))
     records = evaluate(controller, plan, workers=workers, progress=progress)
     summary = summarize(records)
     # --- results first: a person can read them while the videos render
@@ -150,9 +153,8 @@ def plot_success(summary: dict[str, dict], path: str | Path, *, title: str = "")
     """Success rate per condition (pooled entries hatched) with 95% Wilson intervals."""
     names = list(summary)
     rates = np.array([summary[n]["success_rate"] for n in names])
-    # bar lengths; rounding can put an interval end a hair past the rate (0/5: 2.8e-17)
-    low = np.clip(rates - np.array([summary[n]["success_low"] for n in names]), 0.0, None)
-    high = np.clip(np.array([summary[n]["success_high"] for n in names]) - rates, 0.0, None)
+    low = rates - np.array([summary[n]["success_low"] for n in names])
+    high = np.array([summary[n]["success_high"] for n in names]) - rates
     fig, ax = plt.subplots(figsize=(1.2 + 1.1 * len(names), 3.2))
     bars = ax.bar(names, 100 * rates, yerr=100 * np.vstack([low, high]), capsize=4)
     for bar, name in zip(bars, names, strict=True):

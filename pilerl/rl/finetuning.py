@@ -329,8 +329,8 @@ class _Run:
         periodic = bool(self.config.evaluation.every_frames)
         return (2 if periodic else 1) * self.final_eval_s + periodic * self.periodic_eval_s
 
-    def _out_of_time(self, started: float, wall_before: float) -> bool:
-        del started, wall_before  # the deadline covers the whole invocation
+    def _out_of_time(self) -> bool:
+        """Whether training must stop to leave time for the evaluations that follow."""
         return self.deadline is not None and time.perf_counter() + self.reserve_s() >= (
             self.deadline
         )
@@ -445,7 +445,7 @@ class _Run:
                         bar.refresh()
                     else:
                         bar.update(batch.numel())
-                    in_time = not self._out_of_time(started, wall_before)
+                    in_time = not self._out_of_time()
                     if not in_time:
                         break
                     if segment_ends and state["frames"] >= segment_ends[0]:  # a segment ends
