@@ -415,6 +415,37 @@ def test_mapping_errors_name_the_field(change, expected):
         mapping_from_dict(data)
 
 
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        (
+            lambda d: d["sensors"]["boom_angle"].update(range="wide"),
+            r"mapping\.sensors\.boom_angle\.range: expected list\[float\], got 'wide'",
+        ),
+        (
+            lambda d: d["time"].update(rate_hz="fast"),
+            r"mapping\.time\.rate_hz: expected float or null, got 'fast'",
+        ),
+        (lambda d: d.update(sensors=None), r"mapping\.sensors: field 'sensors' is not Optional"),
+    ],
+)
+def test_mapping_type_errors_name_the_field_and_the_type(change, expected):
+    import yaml
+
+    data = yaml.safe_load(MAPPING_YAML)
+    change(data)
+    with pytest.raises(MappingError, match=expected):
+        mapping_from_dict(data)
+
+
+def test_mapping_file_errors_name_the_file_and_the_field(tmp_path):
+    path = tmp_path / "mapping.yaml"
+    path.write_text(MAPPING_YAML.replace("scale: 0.01}", "scale: 0.01, gain: 2}"))
+    with pytest.raises(MappingError) as error:
+        load_mapping(path)
+    assert str(error.value).startswith(f"{path}.controls.boom: unknown field(s) ['gain']")
+
+
 def test_mapping_must_fit_the_store(tmp_path, mapping):
     store = create_store(tmp_path / "ds", mapping)
     wrong_unit = log_mapping()

@@ -1,9 +1,11 @@
 """The column mapping: where each pilerl signal is in a log and how to convert it.
 
 A ``LogMapping`` is a tree of dataclasses, loaded from YAML (``load_mapping``: strict
-loader, see ``safe_yaml``), a dict or a Hydra ``DictConfig``, and checked as a whole
-(``check_mapping``) before any log is read. Every problem is a ``MappingError`` naming the
-field (``mapping.sensors.boom_angle.range``).
+loader, see ``safe_yaml``), a dict or a Hydra ``DictConfig``. The dataclasses are the
+schema of an OmegaConf structured config: merging the data into it types every value and
+refuses unknown, missing and mistyped fields; ``check_mapping`` then checks the values as
+a whole before any log is read. Every problem is a ``MappingError`` naming the file (or
+``mapping``) and the field (``mapping.sensors.boom_angle.range``).
 """
 
 from __future__ import annotations
@@ -271,7 +273,7 @@ def mapping_from_dict(data: Mapping, *, where: str = "mapping") -> LogMapping:
 
     if isinstance(data, DictConfig):
         data = OmegaConf.to_container(data, resolve=True)
-    mapping = _from_dict(LogMapping, data, where)
+    mapping = _structured(data, where)
     check_mapping(mapping, where=where)
     return mapping
 
@@ -460,62 +462,77 @@ def _check_json_value(value: object, path: str) -> None:
     )
 
 
-# -- typed construction from plain data -----------------------------------------------
-def _from_dict(cls: type, data: object, path: str):
+# -- typed construction from plain data: OmegaConf structured configs -------------------
+def _structured(data: Mapping, where: str) -> LogMapping:
+    """``LogMapping`` from plain data, typed and checked by OmegaConf's structured configs.
+
+    ``OmegaConf.structured(LogMapping)`` is the schema: merging the data into it refuses
+    unknown fields and values that do not convert to the declared types; fields left
+    ``MISSING`` are the required ones the data did not give. OmegaConf's errors are
+    reworded to name the field under ``where`` (the file, or ``mapping``).
+    """
+    from omegaconf import OmegaConf
+    from omegaconf.errors import OmegaConfBaseException
+
     if not isinstance(data, Mapping):
-        raise MappingError(f"{path}: expected a mapping of fields, got {type(data).__name__}")
-    hints = typing.get_type_hints(cls)
-    fields = {f.name: f for f in dataclasses.fields(cls)}
-    unknown = sorted(str(k) for k in data if k not in fields)
-    if unknown:
-        raise MappingError(f"{path}: unknown field(s) {unknown}; known fields: {list(fields)}")
-    missing = [
-        name
-        for name, f in fields.items()
-        if name not in data
-        and f.default is dataclasses.MISSING
-        and f.default_factory is dataclasses.MISSING
-    ]
-    if missing:
-        raise MappingError(f"{path}: missing required field(s) {missing}")
-    return cls(**{k: _convert(v, hints[k], f"{path}.{k}") for k, v in data.items()})
+        raise MappingError(f"{where}: expected a mapping of fields, got {type(data).__name__}")
+    try:
+        config = OmegaConf.merge(OmegaConf.structured(LogMapping), data)
+    except OmegaConfBaseException as error:
+        raise MappingError(_describe(error, where)) from None
+    missing = _first_missing(config, where)
+    if missing is not None:
+        node, names = missing
+        raise MappingError(f"{node}: missing required field(s) {names}")
+    return OmegaConf.to_object(config)
 
 
-def _convert(value: object, annotation: object, path: str):
-    if dataclasses.is_dataclass(annotation):
-        return _from_dict(annotation, value, path)
-    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
-    if origin in (types.UnionType, typing.Union):
-        if value is None and type(None) in args:
-            return None
-        (inner,) = [a for a in args if a is not type(None)]
-        return _convert(value, inner, path)
-    if origin is list:
-        if not isinstance(value, list | tuple):
-            raise MappingError(f"{path}: expected a list, got {value!r}")
-        return [_convert(v, args[0], f"{path}[{i}]") for i, v in enumerate(value)]
-    if origin is dict or annotation is dict:
-        if not isinstance(value, Mapping):
-            raise MappingError(f"{path}: expected a mapping, got {value!r}")
-        if not args:
-            return dict(value)
-        return {
-            _convert(k, args[0], path): _convert(v, args[1], f"{path}.{k}")
-            for k, v in value.items()
-        }
-    return _convert_scalar(value, annotation, path)
+def _describe(error, where: str) -> str:  # noqa: ANN001 - an OmegaConfBaseException
+    """One line naming the field for an error raised by ``OmegaConf.merge``."""
+    from omegaconf.errors import ConfigKeyError, UnsupportedValueType
+
+    key = str(error.full_key)
+    path = f"{where}.{key}" if key else where
+    schema = error.object_type
+    if isinstance(error, ConfigKeyError) and dataclasses.is_dataclass(schema):
+        parent = path.rsplit(".", 1)[0] if "." in key else where
+        known = [f.name for f in dataclasses.fields(schema)]
+        return f"{parent}: unknown field(s) [{error.key!r}]; known fields: {known}"
+    if isinstance(error, UnsupportedValueType):
+        value = error.value
+        return (
+            f"{path}: {value!r} ({type(value).__name__}) is not plain JSON; "
+            "quote dates and other values as text"
+        )
+    hints = typing.get_type_hints(schema) if dataclasses.is_dataclass(schema) else {}
+    if error.key in hints:
+        expected = _type_name(hints[error.key])
+        return f"{path}: expected {expected}, got {error.value!r}"
+    return f"{path}: {str(error.msg).splitlines()[0]}"
 
 
-def _convert_scalar(value: object, annotation: object, path: str):
-    if annotation is float and isinstance(value, int | float) and not isinstance(value, bool):
-        return float(value)
-    if annotation is int and isinstance(value, int) and not isinstance(value, bool):
-        return value
-    if annotation is bool and isinstance(value, bool):
-        return value
-    if annotation is str and isinstance(value, str):
-        return value
-    if annotation is str and isinstance(value, int) and not isinstance(value, bool):
-        return str(value)  # a numeric column header or operator id written unquoted in YAML
-    name = getattr(annotation, "__name__", str(annotation))
-    raise MappingError(f"{path}: expected {name}, got {value!r}")
+def _type_name(annotation: object) -> str:
+    """``float``, ``str or null``, ``list[float]``: a field's type as the YAML author reads it."""
+    args = typing.get_args(annotation)
+    if typing.get_origin(annotation) in (types.UnionType, typing.Union):
+        names = [_type_name(a) for a in args if a is not type(None)]
+        return " or ".join(names) + (" or null" if type(None) in args else "")
+    if args:
+        return f"{typing.get_origin(annotation).__name__}[{', '.join(map(_type_name, args))}]"
+    return getattr(annotation, "__name__", str(annotation))
+
+
+def _first_missing(config, path: str) -> tuple[str, list[str]] | None:  # noqa: ANN001
+    """The first node (in field order) with required fields left unset, and their names."""
+    from omegaconf import DictConfig, OmegaConf
+
+    names = [str(k) for k in config if OmegaConf.is_missing(config, k)]
+    if names:
+        return path, names
+    for key in config:
+        child = config[key]
+        if isinstance(child, DictConfig):
+            found = _first_missing(child, f"{path}.{key}")
+            if found is not None:
+                return found
+    return None
