@@ -13,6 +13,7 @@ import yaml
 
 from pilerl.evaluation.metrics import wilson_interval
 from pilerl.sweeps import is_done, mark_done, summarize_sweep
+from pilerl.sweeps.hydra_record import job_directories, read_choices, read_config, read_overrides
 from pilerl.sweeps.summary import main as summary_main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -75,6 +76,36 @@ def test_summary_errors_are_clear(tmp_path, capsys):
     fake_job(tmp_path, 0, ["seed=0"], None)
     assert summary_main([str(tmp_path)]) == 2
     assert "none finished" in capsys.readouterr().err
+
+
+def test_hydra_record_reads_overrides_choices_and_config(tmp_path):
+    job = tmp_path / "sweep" / "nested" / "4"
+    (job / ".hydra").mkdir(parents=True)
+    overrides = ["+x=1", "~logger", "seed=3", "hydra.job.chdir=false", "+hydra.verbose=true"]
+    (job / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(overrides))
+    (job / ".hydra" / "config.yaml").write_text(yaml.safe_dump({"seed": 3, "policy": {}}))
+    choices = {"sensors": "s_pt", "policy": "dannet", "hydra/launcher": "basic"}
+    (job / ".hydra" / "hydra.yaml").write_text(
+        yaml.safe_dump({"hydra": {"runtime": {"choices": choices}}})
+    )
+    assert job_directories(tmp_path / "sweep") == [job]
+    assert read_overrides(job) == {"x": "1", "logger": "", "seed": "3"}
+    assert read_choices(job) == choices
+    assert read_config(job) == {"seed": 3, "policy": {}}
+
+
+def test_hydra_record_errors_name_the_file(tmp_path):
+    (tmp_path / ".hydra").mkdir()
+    (tmp_path / ".hydra" / "overrides.yaml").write_text("[seed=1\n")
+    (tmp_path / ".hydra" / "hydra.yaml").write_text("hydra: {runtime: {}}\n")
+    with pytest.raises(ValueError, match=r"overrides\.yaml: unreadable overrides"):
+        read_overrides(tmp_path)
+    with pytest.raises(ValueError, match=r"hydra\.yaml: no hydra\.runtime\.choices"):
+        read_choices(tmp_path)
+    with pytest.raises(ValueError, match=r"config\.yaml: cannot read the config"):
+        read_config(tmp_path)
+    with pytest.raises(FileNotFoundError, match="no such sweep directory"):
+        job_directories(tmp_path / "nowhere")
 
 
 def test_metrics_must_be_finite_scalars(tmp_path):

@@ -2,7 +2,8 @@
 
 A closed-loop job is a ``recipes/train_bc.py`` run directory with ``evaluation/summary.json``;
 an offline-validation job is one with ``ensemble_curves.csv`` (``ensemble_seeds > 1``).
-The controller, sensor set and dataset of a job come from its saved Hydra config.
+The controller, sensor set and dataset of a job come from its saved settings and Hydra's
+recorded group choices (``pilerl.sweeps.hydra_record``).
 """
 
 from __future__ import annotations
@@ -14,10 +15,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from pilerl.evaluation.metrics import wilson_interval
 from pilerl.runs import read_run_settings
+from pilerl.sweeps.hydra_record import HYDRA_DIR, job_directories, read_choices, read_config
 
 SUMMER, WINTER = "summer", "winter"
 
@@ -61,34 +62,21 @@ def dataset_name(train_data: str) -> str:
     return name
 
 
-def job_directories(sweep_dir: str | Path) -> list[Path]:
-    """Every Hydra job directory under ``sweep_dir`` (those with ``.hydra/config.yaml``)."""
-    sweep_dir = Path(sweep_dir)
-    if not sweep_dir.is_dir():
-        raise FileNotFoundError(f"{sweep_dir}: no such sweep directory")
-    return sorted(p.parent.parent for p in sweep_dir.rglob(".hydra/config.yaml"))
-
-
 def job_setup(job_dir: Path) -> JobSetup:
     """What a train_bc job ran with: its ``run.json`` settings (Hydra's saved config for
     jobs from before run records), and Hydra's group choices."""
-    hydra_dir = job_dir / ".hydra"
     try:
-        config = read_run_settings(job_dir) or yaml.safe_load(
-            (hydra_dir / "config.yaml").read_text()
-        )
-        choices = yaml.safe_load((hydra_dir / "hydra.yaml").read_text())["hydra"]["runtime"][
-            "choices"
-        ]
+        config = read_run_settings(job_dir) or read_config(job_dir)
         return JobSetup(
             path=job_dir,
             controller=config["policy"]["name"],
-            sensors=choices["sensors"],
+            sensors=read_choices(job_dir)["sensors"],
             dataset=dataset_name(config["train_data"]),
             seed=int(config["seed"]),
             config=config,
         )
-    except (OSError, KeyError, TypeError, yaml.YAMLError) as error:
+    except (KeyError, TypeError, ValueError) as error:
+        hydra_dir = job_dir / HYDRA_DIR
         raise ValueError(f"{hydra_dir}: not a train_bc job's saved config ({error!r})") from None
 
 

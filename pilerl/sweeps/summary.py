@@ -22,12 +22,11 @@ from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
 from pilerl.evaluation.metrics import wilson_interval
 from pilerl.io import write_text_atomic
 
 from .completion import METRICS_FILE
+from .hydra_record import job_directories, read_overrides
 
 
 @dataclass
@@ -38,22 +37,11 @@ class Job:
 
 
 def load_jobs(sweep_dir: str | Path) -> list[Job]:
-    """Every job directory under ``sweep_dir`` (the ones with ``.hydra/overrides.yaml``)."""
-    sweep_dir = Path(sweep_dir)
-    if not sweep_dir.is_dir():
-        raise FileNotFoundError(f"{sweep_dir}: no such sweep directory")
+    """Every Hydra job directory under ``sweep_dir`` with its overrides and metrics
+    (``hydra_record`` reads what Hydra recorded)."""
     jobs = []
-    for overrides_file in sorted(sweep_dir.rglob(".hydra/overrides.yaml")):
-        job_dir = overrides_file.parent.parent
-        try:
-            items = yaml.safe_load(overrides_file.read_text()) or []
-        except yaml.YAMLError as error:
-            raise ValueError(f"{overrides_file}: unreadable overrides ({error})") from None
-        overrides = {}
-        for item in items:
-            key, _, value = str(item).partition("=")
-            if not key.startswith(("hydra.", "+hydra.")):
-                overrides[key.lstrip("+~")] = value
+    for job_dir in job_directories(sweep_dir):
+        overrides = read_overrides(job_dir)
         metrics_file = job_dir / METRICS_FILE
         metrics = None
         if metrics_file.exists():
