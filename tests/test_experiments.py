@@ -20,9 +20,9 @@ from pilerl.evaluation.evaluator import (
     summarize,
 )
 from pilerl.policies import controller_inputs
-from pilerl.reports import closed_loop_cells
-from pilerl.reports.paper import build_report
-from pilerl.reports.results import dataset_name
+from pilerl.reports import closed_loop_cells, paper_numbers
+from pilerl.reports.paper import build_report, check_claim
+from pilerl.reports.results import Cell, dataset_name
 from pilerl.training import epochs_for_steps
 
 
@@ -179,6 +179,31 @@ def test_report_puts_the_paper_beside_known_simulated_numbers(tmp_path):
     assert "| holds in part |" in claim or "| does not hold |" in claim
     assert (tmp_path / "report" / "exp1.png").stat().st_size > 5000
     assert "<table>" in page.read_text() and "exp1.png" in page.read_text()
+
+
+def test_every_claim_of_the_paper_rests_on_cells_of_its_own_table():
+    for name, experiment in paper_numbers.EXPERIMENTS.items():
+        for claim in experiment.claims:
+            cells = set(claim.each) | {key for pair in claim.higher for key in pair}
+            assert cells and cells <= set(experiment.table), (name, claim.statement)
+
+
+def test_a_claim_is_checked_per_cell_and_per_pair():
+    winter = ("rf", "s", "d_ii", "winter")
+    summer = ("rf", "s", "d_ii", "summer")
+    cells = {winter: Cell(2, 10, 1), summer: Cell(8, 10, 1)}
+    below = paper_numbers.Claim("low", each=(winter, summer), below=0.5)
+    assert [ok for ok, _ in check_claim(below, cells)] == [True, False]
+    higher = paper_numbers.Claim("worse in winter", higher=((summer, winter), (winter, summer)))
+    assert [ok for ok, _ in check_claim(higher, cells)] == [True, False]
+    unknown = ("nnet", "s", "d_ii", "winter")
+    assert check_claim(paper_numbers.Claim("x", each=(unknown,), at_least=0.8), cells) == [
+        (None, "not run")
+    ]
+    with pytest.raises(ValueError, match="either higher pairs or each cells"):
+        paper_numbers.Claim("both", higher=((summer, winter),), each=(winter,), below=0.5)
+    with pytest.raises(ValueError, match="needs below or at_least"):
+        paper_numbers.Claim("no threshold", each=(winter,))
 
 
 def test_report_rejects_a_missing_sweep_directory(tmp_path):

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +26,8 @@ from pilerl.figures import legend_outside, plt, save_figure
 
 from . import paper_numbers
 from .document import Report
-from .results import WINTER, Cell, closed_loop_cells, offline_validation_curves
+from .paper_numbers import Claim, Key
+from .results import Cell, closed_loop_cells, offline_validation_curves
 
 SENSOR_LABELS = {"s": "θ1, θ2, p_d", "s_pt": "+ p_t", "s_pt_sprime": "+ p_t, s′"}
 CONTROLLER_LABELS = {
@@ -37,8 +38,6 @@ CONTROLLER_LABELS = {
     "dannet": "DANNet",
 }
 DATASET_LABELS = {"d_i": "D_I", "d_ii": "D_II"}
-
-Key = tuple[str, str, str, str]  # controller, sensors, dataset, test
 
 
 def _percent(x: float) -> str:
@@ -160,103 +159,19 @@ def _better(cells: dict[Key, Cell], a: Key, b: Key) -> tuple[bool | None, str]:
     return ca.rate > cb.rate, evidence
 
 
-Claim = tuple[str, Callable[[dict[Key, Cell]], list[tuple[bool | None, str]]]]
-
-
-def _each(keys: list[Key], passes: Callable[[float], bool]) -> Callable:
-    """A claim about every cell of ``keys`` on its own: ``passes(success rate)``."""
-
-    def check(cells):
-        return [
-            (None, "not run")
-            if k not in cells
-            else (passes(cells[k].rate), _label(k) + " " + _percent(cells[k].rate))
-            for k in keys
-        ]
-
-    return check
-
-
-def _pairs(pairs: list[tuple[Key, Key]]) -> Callable:
-    return lambda cells: [_better(cells, a, b) for a, b in pairs]
-
-
-def _w(controller: str, sensors: str, dataset: str, test: str = WINTER) -> Key:
-    return (controller, sensors, dataset, test)
-
-
-EXP1_CLAIMS: list[Claim] = [
-    (
-        "Trained on summer D_II with ⟨θ1, θ2, p_d⟩, no controller reaches 50% in winter "
-        "(the paper: NNet 0%, RF 40%, NNetV2 0%).",
-        _each([_w(c, "s", "d_ii") for c in ("nnet", "rf", "nnetv2")], lambda rate: rate < 0.5),
-    ),
-    (
-        "Each controller does worse in winter than in summer (the paper: RF 80% → 40%, NNetV2 "
-        "12% → 0%; NNet 0% in both).",
-        _pairs([(_w(c, "s", "d_ii", "summer"), _w(c, "s", "d_ii")) for c in ("rf", "nnetv2")]),
-    ),
-    (
-        "RF is the best of the three in winter.",
-        _pairs([(_w("rf", "s", "d_ii"), _w(c, "s", "d_ii")) for c in ("nnet", "nnetv2")]),
-    ),
-]
-
-EXP2_CLAIMS: list[Claim] = [
-    (
-        "Adding p_t raises RF's winter success on both datasets (the paper: 40% → 86%, 30% → 87%).",
-        _pairs([(_w("rf", "s_pt", d), _w("rf", "s", d)) for d in ("d_ii", "d_i")]),
-    ),
-    (
-        "Training NNetV2 on all data D_I instead of D_II raises its winter success (the "
-        "paper: 0% → 56% without p_t, 0% → 76% with p_t).",
-        _pairs([(_w("nnetv2", s, "d_i"), _w("nnetv2", s, "d_ii")) for s in ("s", "s_pt")]),
-    ),
-    (
-        "Adding p_t raises NNetV2's winter success on D_I (the paper: 56% → 76%).",
-        _pairs([(_w("nnetv2", "s_pt", "d_i"), _w("nnetv2", "s", "d_i"))]),
-    ),
-    (
-        "NNet fails in winter whatever the data and sensors (the paper: 0% everywhere).",
-        _each(
-            [_w("nnet", s, d) for s in ("s", "s_pt") for d in ("d_ii", "d_i")],
-            lambda rate: rate < 0.2,
-        ),
-    ),
-]
-
-EXP3_CLAIMS: list[Claim] = [
-    (
-        "With p_t, the attention controllers beat NNetV2 even on D_II (the paper: ANNet 60%, "
-        "DANNet 100% vs NNetV2 0%).",
-        _pairs(
-            [(_w(c, "s_pt", "d_ii"), _w("nnetv2", "s_pt", "d_ii")) for c in ("annet", "dannet")]
-        ),
-    ),
-    (
-        "With p_t and the attention sensors s′, ANNet and DANNet reach at least 80% in winter "
-        "on both datasets (the paper: 80-100%).",
-        _each(
-            [_w(c, "s_pt_sprime", d) for c in ("annet", "dannet") for d in ("d_i", "d_ii")],
-            lambda rate: rate >= 0.8,
-        ),
-    ),
-    (
-        "DANNet with p_t and s′ is the best controller on both datasets (the paper: 100%, "
-        "with ANNet, against NNetV2's 0%).",
-        _pairs(
-            [
-                (_w("dannet", "s_pt_sprime", d), _w(c, "s_pt_sprime", d))
-                for d in ("d_i", "d_ii")
-                for c in ("nnetv2", "annet")
-            ]
-        ),
-    ),
-    (
-        "Without p_t, attention does not help on D_II (the paper: all three 0%).",
-        _each([_w(c, "s", "d_ii") for c in ("nnetv2", "annet", "dannet")], lambda rate: rate < 0.2),
-    ),
-]
+def check_claim(claim: Claim, cells: dict[Key, Cell]) -> list[tuple[bool | None, str]]:
+    """The claim checked on each of its cells or pairs: (holds?, evidence); None: not run."""
+    if claim.higher:
+        return [_better(cells, a, b) for a, b in claim.higher]
+    results = []
+    for key in claim.each:
+        if key not in cells:
+            results.append((None, "not run"))
+            continue
+        rate = cells[key].rate
+        holds = rate < claim.below if claim.below is not None else rate >= claim.at_least
+        results.append((holds, _label(key) + " " + _percent(rate)))
+    return results
 
 
 def verdict(results: list[bool | None]) -> str:
@@ -269,12 +184,13 @@ def verdict(results: list[bool | None]) -> str:
     return "holds in part" if any(known) else "does not hold"
 
 
-def claim_rows(claims: list[Claim], cells: dict[Key, Cell]) -> list[list[str]]:
+def claim_rows(claims: Sequence[Claim], cells: dict[Key, Cell]) -> list[list[str]]:
+    """One row per claim: the statement, its verdict in simulation, the evidence."""
     rows = []
-    for statement, check in claims:
-        results = check(cells)
+    for claim in claims:
+        results = check_claim(claim, cells)
         evidence = "; ".join(text for _, text in results)
-        rows.append([statement, verdict([ok for ok, _ in results]), evidence])
+        rows.append([claim.statement, verdict([ok for ok, _ in results]), evidence])
     return rows
 
 
@@ -287,7 +203,7 @@ def add_closed_loop_experiment(
     title: str,
     sweep_dir: Path,
     paper: dict[Key, int],
-    claims: list[Claim],
+    claims: Sequence[Claim],
     out_dir: Path,
     figure: str,
 ) -> dict[Key, Cell]:
@@ -377,7 +293,7 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
     if pairs:
         claims.append(
             [
-                "All data D_I gives a lower validation loss than D_II.",
+                paper_numbers.MORE_DATA_LOSS_CLAIM,
                 verdict([final[b] < final[a] for a, b in pairs]),
                 "; ".join(f"{a[0]}: D_II {final[a]:.4f}, D_I {final[b]:.4f}" for a, b in pairs),
             ]
@@ -390,7 +306,7 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
     if attention:
         claims.append(
             [
-                "The attention networks reach a lower validation loss than NNetV2.",
+                paper_numbers.ATTENTION_LOSS_CLAIM,
                 verdict([final[a] < final[b] for a, b in attention]),
                 "; ".join(
                     f"{a[0]} {a[2]} {final[a]:.4f} vs NNetV2 {final[b]:.4f}" for a, b in attention
@@ -526,8 +442,7 @@ def at_a_glance(compared: list[tuple[str, dict, dict, list]]) -> Report:
                 for m, n in sorted(modes.items(), key=lambda kv: -kv[1])
                 if n
             )
-            + f' ({failed} episodes). The paper: "the main failure cases were early boom '
-            'rising and no boom rising at all".'
+            + f' ({failed} episodes). The paper: "{paper_numbers.FAILURE_QUOTE}".'
         )
     return glance
 
@@ -556,37 +471,21 @@ def build_report(
     )
     if notes:
         report.bullets(notes)
-    experiments = [
-        (
-            exp1,
-            "Exp. 1: summer to winter (Table II)",
-            paper_numbers.TABLE_II,
-            EXP1_CLAIMS,
-            "exp1.png",
-        ),
-        (
-            exp2,
-            "Exp. 2: more data and p_t (Table III)",
-            paper_numbers.TABLE_III,
-            EXP2_CLAIMS,
-            "exp2.png",
-        ),
-        (exp3, "Exp. 3: attention (Table IV)", paper_numbers.TABLE_IV, EXP3_CLAIMS, "exp3.png"),
-    ]
     glance_at = len(report.blocks)
     compared = []
-    for sweep_dir, title, paper, claims, figure in experiments:
-        if sweep_dir is not None:
+    sweeps = {"exp1": exp1, "exp2": exp2, "exp3": exp3}
+    for name, experiment in paper_numbers.EXPERIMENTS.items():
+        if sweeps[name] is not None:
             cells = add_closed_loop_experiment(
                 report,
-                title=title,
-                sweep_dir=Path(sweep_dir),
-                paper=paper,
-                claims=claims,
+                title=experiment.title,
+                sweep_dir=Path(sweeps[name]),
+                paper=experiment.table,
+                claims=experiment.claims,
                 out_dir=out_dir,
-                figure=figure,
+                figure=experiment.figure,
             )
-            compared.append((title, paper, cells, claims))
+            compared.append((experiment.title, experiment.table, cells, experiment.claims))
     if compared:
         report.blocks[glance_at:glance_at] = at_a_glance(compared).blocks
     if exp4 is not None:
