@@ -156,7 +156,6 @@ def test_killed_td3bc_run_resumes_exactly_with_its_replay_buffer(cloned, tmp_pat
     assert_same_weights(final_weights(tmp_path / "killed"), final_weights(tmp_path / "reference"))
 
 
-@pytest.mark.slow
 def test_multiprocess_collection_restarts_its_workers_at_each_segment(cloned, tmp_path):
     """Two worker processes, a checkpoint every 2 batches: segments reseed and reset them."""
     config = tiny_run_config(cloned, tiny_ppo())
