@@ -16,6 +16,7 @@ from pilerl.data.lerobot import (
     LeRobotFormatError,
     export_lerobot,
     import_lerobot,
+    import_lerobot_dataset,
     main,
     read_lerobot,
 )
@@ -176,3 +177,14 @@ def test_command_line_round_trip_and_bad_folder(tmp_path, capsys):
     with pytest.raises(SystemExit, match=r"codebase_version 'v1.6'"):
         main(["import", str(tmp_path / "bad"), str(tmp_path / "never")])
     assert not (tmp_path / "never").exists()
+
+
+def test_import_into_a_new_dataset_and_refusal_of_another_layout(tmp_path):
+    out = export_lerobot(sim_store(tmp_path / "ds"), tmp_path / "lerobot")
+    store, metas = import_lerobot_dataset(out, tmp_path / "new")
+    assert len(metas) == 3 and len(EpisodeStore.open(tmp_path / "new")) == 3
+    assert store.stats is not None and store.stats["n_samples"] == 15
+    EpisodeStore.create(tmp_path / "other", sensors={"boom_angle": "rad"}, controls=["boom"])
+    with pytest.raises(ValueError, match="existing dataset has sensors"):
+        import_lerobot_dataset(out, tmp_path / "other")
+    assert len(EpisodeStore.open(tmp_path / "other")) == 0

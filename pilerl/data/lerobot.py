@@ -26,7 +26,7 @@ frame repeats its own), rewards and end flags come from ``next.reward`` / ``next
 where present. Nothing downloads.
 
 Command line: ``python -m pilerl.data.lerobot export DATASET OUT [--episodes ...]`` and
-``python -m pilerl.data.lerobot import LEROBOT_DIR DATASET``.
+``python -m pilerl.data.lerobot import LEROBOT_DIR DATASET`` (``import_lerobot_dataset``).
 """
 
 from __future__ import annotations
@@ -300,6 +300,34 @@ def import_lerobot(
     """Append every episode of a LeRobot folder to ``store`` (one atomic change); the
     store's sensors (with units) and controls must match the folder's."""
     sensors, controls, episodes = read_lerobot(root, sensor_units=sensor_units)
+    return _append(root, store, sensors, controls, episodes)
+
+
+def import_lerobot_dataset(
+    root: str | Path,
+    dataset: str | Path,
+    *,
+    sensor_units: Mapping[str, str] | None = None,
+) -> tuple[EpisodeStore, list[EpisodeMeta]]:
+    """Import a LeRobot folder into the pilerl dataset at ``dataset``, created with the
+    folder's sensors and controls when it does not exist. Every episode is checked before
+    the dataset is created or changed, so a bad folder leaves nothing behind."""
+    sensors, controls, episodes = read_lerobot(root, sensor_units=sensor_units)
+    for k, (episode, _) in enumerate(episodes):
+        validate_episode(
+            episode, list(sensors), action_dim=len(controls), where=f"{root} episode {k}"
+        )
+    store = EpisodeStore.create(dataset, sensors=sensors, controls=controls, exist_ok=True)
+    return store, _append(root, store, sensors, controls, episodes)
+
+
+def _append(
+    root: str | Path,
+    store: EpisodeStore,
+    sensors: dict[str, str],
+    controls: list[str],
+    episodes: list[tuple],
+) -> list[EpisodeMeta]:
     if sensors != store.sensors or controls != store.controls:
         raise LeRobotFormatError(
             f"{root}: sensors {sensors} and controls {controls}; the dataset {store.root} has "
@@ -410,18 +438,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             count = len(args.episodes) if args.episodes else len(store)
             print(f"{path}: {count} episodes (LeRobot {CODEBASE_VERSION})")
         else:
-            sensors, controls, episodes = read_lerobot(args.lerobot)
-            for k, (episode, _) in enumerate(episodes):  # every check before the dataset exists
-                validate_episode(
-                    episode,
-                    list(sensors),
-                    action_dim=len(controls),
-                    where=f"{args.lerobot} episode {k}",
-                )
-            store = EpisodeStore.create(
-                args.dataset, sensors=sensors, controls=controls, exist_ok=True
-            )
-            metas = import_lerobot(args.lerobot, store)
+            store, metas = import_lerobot_dataset(args.lerobot, args.dataset)
             print(f"{args.dataset}: imported {len(metas)} episodes; {len(store)} in the dataset")
     except (OSError, ValueError, IndexError, KeyError) as error:  # SchemaError is a ValueError
         raise SystemExit(f"error: {error}") from None

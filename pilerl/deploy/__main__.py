@@ -5,50 +5,65 @@
     python -m pilerl.deploy rearm --port 47000          # resume after a fault
     python -m pilerl.deploy faults dannet.onnx --cases 3 --speedup 4
 
-The Hydra recipe ``recipes/deploy.py`` calls the same functions.
+The Hydra recipe ``recipes/deploy.py`` calls the same functions. No default is restated
+here: each option's default is the field of the deploy settings (``pilerl.deploy.config``)
+that the recipe's ``conf/deploy.yaml`` fills, so both start from the same values.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 
 from pilerl.runtime import limit_threads
+
+from .config import DeployConfig, HilConfig, RuntimeConfig
+
+RUNTIME = RuntimeConfig()
+HIL = HilConfig()
+ENV = next(f for f in dataclasses.fields(DeployConfig) if f.name == "env").default_factory()
+CLI_RUN_DIR = "outputs/deploy/cli"
 
 
 def _env_kwargs(args) -> dict:
     return {"condition": args.condition, "control_hz": args.control_hz}
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """The four commands and their options (defaults: the deploy settings')."""
     parser = argparse.ArgumentParser(prog="python -m pilerl.deploy", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     runtime = sub.add_parser("runtime", help="serve a controller over UDP")
     runtime.add_argument("controller", help=".onnx export, .pt checkpoint or 'scripted'")
-    runtime.add_argument("--host", default="127.0.0.1")
-    runtime.add_argument("--port", type=int, default=47000)
-    runtime.add_argument("--run-dir", default="outputs/deploy/cli")
-    runtime.add_argument("--max-seconds", type=float, default=60.0)
-    runtime.add_argument("--episodes", type=int, default=None)
-    runtime.add_argument("--max-sensor-age", type=float, default=0.15)
+    runtime.add_argument("--host", default=RUNTIME.host)
+    runtime.add_argument("--port", type=int, default=RUNTIME.port)
+    runtime.add_argument("--run-dir", default=CLI_RUN_DIR)
+    runtime.add_argument("--max-seconds", type=float, default=RUNTIME.max_seconds)
+    runtime.add_argument("--episodes", type=int, default=RUNTIME.episodes)
+    runtime.add_argument("--max-sensor-age", type=float, default=RUNTIME.max_sensor_age_s)
     bridge = sub.add_parser("bridge", help="run the simulator as the machine")
-    bridge.add_argument("--runtime-host", default="127.0.0.1")
-    bridge.add_argument("--port", type=int, default=47000, help="the runtime's port")
+    bridge.add_argument("--runtime-host", default=RUNTIME.host)
+    bridge.add_argument("--port", type=int, default=RUNTIME.port, help="the runtime's port")
     bridge.add_argument("--episodes", type=int, default=1)
-    bridge.add_argument("--seed", type=int, default=1, help="evaluator base seed")
+    bridge.add_argument("--seed", type=int, default=HIL.seed, help="evaluator base seed")
     rearm = sub.add_parser("rearm", help="ask a runtime to resume after a fault")
-    rearm.add_argument("--runtime-host", default="127.0.0.1")
-    rearm.add_argument("--port", type=int, default=47000, help="the runtime's port")
+    rearm.add_argument("--runtime-host", default=RUNTIME.host)
+    rearm.add_argument("--port", type=int, default=RUNTIME.port, help="the runtime's port")
     faults = sub.add_parser("faults", help="fault-injection table against the simulator")
     faults.add_argument("controller")
     faults.add_argument("--cases", type=int, default=1)
-    faults.add_argument("--max-sensor-age", type=float, default=0.15)
+    faults.add_argument("--max-sensor-age", type=float, default=RUNTIME.max_sensor_age_s)
     for p in (runtime, bridge, rearm, faults):
-        p.add_argument("--control-hz", type=float, default=20.0)
-        p.add_argument("--speedup", type=float, default=1.0)
-        p.add_argument("--condition", default="summer")
-    args = parser.parse_args(argv)
+        p.add_argument("--control-hz", type=float, default=ENV.control_hz)
+        p.add_argument("--speedup", type=float, default=RUNTIME.speedup)
+        p.add_argument("--condition", default=ENV.condition)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
     limit_threads()
     try:
         if args.command == "runtime":
@@ -58,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
             from .bridge import BridgeSettings, run_bridge
 
             settings = BridgeSettings(
+                simulator=ENV.simulator,
                 env_kwargs=_env_kwargs(args),
                 seeds=tuple(args.seed * 100_000 + i for i in range(args.episodes)),
                 speedup=args.speedup,
@@ -69,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
             from .hil import simulator_layout
             from .link import MachineLink
 
-            layout, _ = simulator_layout("pile_loader", _env_kwargs(args))
+            layout, _ = simulator_layout(ENV.simulator, _env_kwargs(args))
             link = MachineLink(layout, (args.runtime_host, args.port))
             link.send_rearm()
             link.close()
@@ -79,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
             from .hil import simulator_layout
             from .loop import RuntimeSettings
 
-            _, control_hz = simulator_layout("pile_loader", _env_kwargs(args))
+            _, control_hz = simulator_layout(ENV.simulator, _env_kwargs(args))
             settings = RuntimeSettings(
                 control_hz=control_hz,  # the simulator's actual rate
                 max_sensor_age_s=args.max_sensor_age,
@@ -102,7 +118,7 @@ def serve(args) -> dict:
     from .loop import RuntimeSettings
     from .runtime import ControlRuntime
 
-    layout, _ = simulator_layout("pile_loader", _env_kwargs(args))
+    layout, _ = simulator_layout(ENV.simulator, _env_kwargs(args))
     settings = RuntimeSettings(
         control_hz=args.control_hz,
         max_sensor_age_s=args.max_sensor_age,

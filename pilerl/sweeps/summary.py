@@ -28,6 +28,8 @@ from pilerl.io import write_text_atomic
 from .completion import METRICS_FILE
 from .hydra_record import job_directories, read_overrides
 
+AVERAGED_KEYS = ("seed",)  # overrides averaged over, not grouped by
+
 
 @dataclass
 class Job:
@@ -58,7 +60,7 @@ def load_jobs(sweep_dir: str | Path) -> list[Job]:
 def summarize_sweep(
     sweep_dir: str | Path,
     *,
-    average_over: tuple[str, ...] = ("seed",),
+    average_over: tuple[str, ...] = AVERAGED_KEYS,
     out_dir: str | Path | None = None,
     plot_metric: str | None = None,
 ) -> list[dict]:
@@ -193,7 +195,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--metric", help="the one metric to tabulate and plot (default: every one; plot the first)"
     )
-    parser.add_argument("--average-over", nargs="*", default=["seed"])
+    parser.add_argument("--average-over", nargs="*", default=list(AVERAGED_KEYS))
     args = parser.parse_args(argv)
     try:
         rows = summarize_sweep(
