@@ -446,6 +446,17 @@ def test_mapping_file_errors_name_the_file_and_the_field(tmp_path):
     assert str(error.value).startswith(f"{path}.controls.boom: unknown field(s) ['gain']")
 
 
+def test_mapping_text_is_taken_as_written_not_as_an_interpolation():
+    import yaml
+
+    data = yaml.safe_load(MAPPING_YAML)
+    data["sensors"]["boom_angle"]["column"] = "th1${deg}"
+    data["metadata"]["operator_id"] = "a\\${b}"
+    mapping = mapping_from_dict(data)
+    assert mapping.sensors["boom_angle"].column == "th1${deg}"
+    assert mapping.metadata.operator_id == "a\\${b}"
+
+
 def test_mapping_must_fit_the_store(tmp_path, mapping):
     store = create_store(tmp_path / "ds", mapping)
     wrong_unit = log_mapping()

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import types
 import typing
 from collections.abc import Iterable, Mapping
@@ -28,6 +29,7 @@ from .errors import MappingError
 from .safe_yaml import YamlError, load_yaml_file
 
 TIME_FORMATS = ("auto", "number", "iso")
+_INTERPOLATION = re.compile(r"(\\*)\$\{")  # backslashes before "${": OmegaConf's escapes
 CSV_DELIMITERS = ("auto", ",", ";", "\t", "|", " ")
 CSV_DECIMALS = ("auto", ".", ",")
 
@@ -477,7 +479,7 @@ def _structured(data: Mapping, where: str) -> LogMapping:
     if not isinstance(data, Mapping):
         raise MappingError(f"{where}: expected a mapping of fields, got {type(data).__name__}")
     try:
-        config = OmegaConf.merge(OmegaConf.structured(LogMapping), data)
+        config = OmegaConf.merge(OmegaConf.structured(LogMapping), _literal(data))
     except OmegaConfBaseException as error:
         raise MappingError(_describe(error, where)) from None
     missing = _first_missing(config, where)
@@ -485,6 +487,19 @@ def _structured(data: Mapping, where: str) -> LogMapping:
         node, names = missing
         raise MappingError(f"{node}: missing required field(s) {names}")
     return OmegaConf.to_object(config)
+
+
+def _literal(value: object) -> object:
+    """``value`` with every ``${`` in its text escaped: a mapping's text is taken as
+    written (a column named ``x${1}``), never as an OmegaConf interpolation. A Hydra
+    config's interpolations were resolved before (``mapping_from_dict``)."""
+    if isinstance(value, str):
+        return _INTERPOLATION.sub(lambda m: m.group(1) * 2 + "\\${", value)
+    if isinstance(value, Mapping):
+        return {key: _literal(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_literal(item) for item in value]
+    return value
 
 
 def _describe(error, where: str) -> str:  # noqa: ANN001 - an OmegaConfBaseException
