@@ -11,6 +11,9 @@ episodes and the 95% Wilson interval) and says whether the paper's number lies i
 interval. Each experiment's claims from the paper are then checked on the simulated numbers
 and stated as holding or not. Any experiment may be left out; jobs that have not finished
 are listed, not guessed.
+
+The paper's tables and claims are data in ``paper_numbers``; this module checks the claims
+(``check_claim``) and writes the report's sections.
 """
 
 from __future__ import annotations
