@@ -1,10 +1,20 @@
-"""The small JSON-able description an actor is rebuilt from (saved beside its weights)."""
+"""The policy room's settings.
+
+``ActorConfig``: the small JSON-able description an actor is rebuilt from (saved beside its
+weights). ``PolicyConfig`` and ``SensorsConfig``: the ``policy`` and ``sensors`` config
+groups (conf/policy/, conf/sensors/); ``check_controller`` checks the pair together.
+"""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from omegaconf import MISSING
+
+from pilerl import checks
 
 DEFAULT_N_CONTROLS = 3  # boom, bucket, throttle
 
@@ -158,3 +168,46 @@ def check_controller_choice(
             f"(~{n_parameters**2 * 8 / 1e9:.1f} GB); the limit is {LM_MAX_PARAMETERS}. "
             "Use trainer=gradient"
         )
+
+
+@dataclass
+class PolicyConfig:
+    """A controller (the ``policy`` config group): registry name and its options.
+
+    Attributes:
+        name: registered controller (``pilerl.policies.registry.CONTROLLERS``).
+        options: keyword options of the controller class (empty: the paper's defaults).
+    """
+
+    name: str = MISSING
+    options: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        from .registry import CONTROLLERS
+
+        if self.name != MISSING:
+            CONTROLLERS.check("policy.name", self.name)
+
+
+@dataclass
+class SensorsConfig:
+    """Controller inputs s and attention inputs s' by sensor name (``sensors`` group)."""
+
+    s: list[str] = MISSING
+    s_prime: list[str] | None = None
+
+    def __post_init__(self) -> None:
+        if self.s != MISSING:
+            checks.names("sensors.s", self.s)
+        if self.s_prime is not None:
+            checks.names("sensors.s_prime", self.s_prime)
+
+
+def check_controller(policy: PolicyConfig, sensors: SensorsConfig, *, trainer: str | None) -> None:
+    """The controller ``policy`` on ``sensors`` can be built with its options and trained
+    by ``trainer`` (``None``: its default); see ``check_controller_choice``."""
+    if MISSING in (policy.name, sensors.s):
+        return
+    check_controller_choice(
+        policy.name, sensors.s, sensors.s_prime, policy.options, trainer=trainer
+    )
