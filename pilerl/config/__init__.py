@@ -28,7 +28,7 @@ def register_configs() -> None:
     )
     from pilerl.evaluation.settings import EvaluateConfig, ScoopConfig
     from pilerl.loggers import LoggerConfig
-    from pilerl.policies.config import PolicyConfig, SensorsConfig
+    from pilerl.policies.settings import PolicyConfig, SensorsConfig
     from pilerl.rl.config import ALGORITHMS, CurriculumConfig, FinetuneConfig
     from pilerl.training.settings import TrainBCConfig
 

@@ -15,7 +15,7 @@ from pilerl.config.schema import EnvConfig
 from pilerl.data.settings import DemosConfig
 from pilerl.evaluation.settings import ClosedLoopConfig
 from pilerl.loggers import LoggerConfig
-from pilerl.policies.config import PolicyConfig, SensorsConfig, check_controller
+from pilerl.policies.settings import PolicyConfig, SensorsConfig, check_controller
 from pilerl.rl.config import FinetuneConfig
 from pilerl.training.settings import BCStepConfig
 

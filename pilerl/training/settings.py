@@ -16,7 +16,7 @@ from pilerl import checks
 from pilerl.config.schema import EnvConfig
 from pilerl.evaluation.settings import ClosedLoopConfig
 from pilerl.loggers import LoggerConfig
-from pilerl.policies.config import PolicyConfig, SensorsConfig, check_controller
+from pilerl.policies.settings import PolicyConfig, SensorsConfig, check_controller
 
 
 @dataclass
