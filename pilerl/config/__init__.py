@@ -1,11 +1,13 @@
 """Composition only: every room's typed settings registered in Hydra's ConfigStore.
 
-Each room owns its settings (a dataclass checked in ``__post_init__``): ``pilerl.data.settings``,
-``pilerl.policies.config``, ``pilerl.evaluation.settings``, ``pilerl.training.settings``,
-``pilerl.rl.config``, ``pilerl.loggers``; the simulator's ``EnvConfig`` is in ``schema.py``
-until it moves to ``pilerl/sim``. The YAML files under conf/ extend the stored schemas, so a
-wrong type or an unknown key fails when Hydra composes a config, and state only what differs
-from the dataclasses' defaults. ``pipeline.py`` composes the main job's config.
+Each room owns its settings (a dataclass checked in ``__post_init__``):
+``pilerl.data.settings``, ``pilerl.policies.settings``, ``pilerl.evaluation.settings``,
+``pilerl.training.settings``, ``pilerl.rl.config``, ``pilerl.deploy.config`` and
+``pilerl.loggers``; the simulator's ``EnvConfig`` is in ``schema.py`` until it moves to
+``pilerl/sim``. The YAML files under conf/ extend the stored schemas, so a wrong type or an
+unknown key fails when Hydra composes a config, and they state only what differs from the
+dataclasses' defaults. ``pipeline.py`` composes the main job's config. See
+docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ def register_configs() -> None:
         RecordConfig,
         TeleopConfig,
     )
+    from pilerl.deploy.config import DeployConfig
     from pilerl.evaluation.settings import EvaluateConfig, ScoopConfig
     from pilerl.loggers import LoggerConfig
     from pilerl.policies.settings import PolicyConfig, SensorsConfig
@@ -44,6 +47,7 @@ def register_configs() -> None:
         "evaluate": EvaluateConfig,
         "finetune": FinetuneConfig,
         "pipeline": PipelineConfig,
+        "deploy": DeployConfig,
     }
     groups = {
         "env": {"env": EnvConfig},
