@@ -2,8 +2,8 @@
 
 ``TrainBCConfig`` is the primary schema of ``recipes/train_bc.py``; ``BCStepConfig`` is the
 pipeline's ``bc`` node. Every field is checked in ``__post_init__``: a bad value fails when
-the config is built, naming the field (see ``pilerl.training.BCSettings`` for what the
-numbers do).
+the config is built, naming the field. The training numbers default to
+``pilerl.training.BCSettings``'s (the paper's), which says what they do.
 """
 
 from __future__ import annotations
@@ -17,6 +17,8 @@ from pilerl.config.schema import EnvConfig
 from pilerl.evaluation.settings import ClosedLoopConfig
 from pilerl.loggers import LoggerConfig
 from pilerl.policies.settings import PolicyConfig, SensorsConfig, check_controller
+
+from .bc import BCSettings
 
 
 @dataclass
@@ -46,11 +48,11 @@ class TrainBCConfig:
     sensors: SensorsConfig = field(default_factory=SensorsConfig)
     train_data: str = MISSING
     validation_data: str | None = None
-    epochs: int = 150
+    epochs: int = BCSettings.epochs
     gradient_steps: int | None = None
-    batch_size: int = 512
-    learning_rate: float = 1e-3
-    seed: int = 0
+    batch_size: int = BCSettings.batch_size
+    learning_rate: float = BCSettings.learning_rate
+    seed: int = BCSettings.seed
     logger: LoggerConfig = field(default_factory=LoggerConfig)
     trainer: str | None = None
     ensemble_seeds: int = 1
@@ -92,9 +94,9 @@ class BCStepConfig:
     """
 
     gradient_steps: int = 3000
-    batch_size: int = 512
-    learning_rate: float = 1e-3
-    seed: int = 0
+    batch_size: int = BCSettings.batch_size
+    learning_rate: float = BCSettings.learning_rate
+    seed: int = BCSettings.seed
 
     def __post_init__(self) -> None:
         checks.positive_int("bc.gradient_steps", self.gradient_steps)
