@@ -18,7 +18,7 @@ from pathlib import Path
 
 import torch
 
-from pilerl.config.schema import LoggerConfig
+from pilerl.loggers import LoggerConfig
 from pilerl.policies import actor_policy, load_actor, make_actor, save_actor
 from pilerl.rl import (
     CollectionConfig,

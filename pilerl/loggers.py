@@ -4,11 +4,33 @@ from __future__ import annotations
 
 import importlib.util
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
-BACKENDS = ("csv", "tensorboard", "wandb", "none")
-PACKAGES = {"tensorboard": "tensorboard", "wandb": "wandb"}  # backend -> package it needs
+from pilerl.registry import Registry
+
+# backend -> the package it needs (None: TorchRL alone, or no logger)
+LOGGERS: Registry[str | None] = Registry(
+    "logger", {"csv": None, "tensorboard": "tensorboard", "wandb": "wandb", "none": None}
+)
+BACKENDS = tuple(LOGGERS)
 WANDB_PROJECT = "pilerl"
+
+
+@dataclass
+class LoggerConfig:
+    """A TorchRL metric logger (the ``logger`` config group).
+
+    Attributes:
+        backend: ``csv`` (default; files under the run directory), ``tensorboard`` (needs the
+            ``tensorboard`` package), ``wandb`` (offline unless ``WANDB_MODE`` says otherwise)
+            or ``none``.
+    """
+
+    backend: str = "csv"
+
+    def __post_init__(self) -> None:
+        LOGGERS.check("logger.backend", self.backend)
 
 
 def make_logger(backend: str, run_dir: str | Path, *, experiment_name: str):
@@ -25,11 +47,10 @@ def make_logger(backend: str, run_dir: str | Path, *, experiment_name: str):
     """
     from torchrl.record.loggers import get_logger
 
-    if backend not in BACKENDS:
-        raise ValueError(f"logger: unknown backend {backend!r}; known: {list(BACKENDS)}")
+    LOGGERS.check("logger", backend)
     if backend == "none":
         return None
-    package = PACKAGES.get(backend)
+    package = LOGGERS[backend]
     if package is not None and importlib.util.find_spec(package) is None:
         raise ValueError(f"logger={backend} needs the {package} package: pip install {package}")
     if backend == "wandb":

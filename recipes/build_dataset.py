@@ -11,8 +11,9 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from pilerl.config import BuildDatasetConfig, register_configs
+from pilerl.config import register_configs
 from pilerl.data import EpisodeStore, build_dataset
+from pilerl.data.settings import BuildDatasetConfig
 from pilerl.runs import begin_run, finish_run
 from pilerl.runtime import limit_threads
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
-from pilerl.config import EvaluateConfig, register_configs
+from pilerl.config import register_configs
 from pilerl.evaluation.closed_loop import run_closed_loop
 from pilerl.evaluation.evaluator import (
     ActorController,
@@ -27,6 +27,7 @@ from pilerl.evaluation.evaluator import (
     build_envs,
     success_metrics,
 )
+from pilerl.evaluation.settings import EvaluateConfig
 from pilerl.policies import load_actor
 from pilerl.rendering import resolve_videos
 from pilerl.runs import begin_run, finish_run, resolve_checkpoint

@@ -22,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 from pilerl.config import register_configs
 from pilerl.policies.checkpoint import warn_if_other_control_rate
 from pilerl.rendering import resolve_videos
-from pilerl.rl import FinetuneConfig, finetune, register_rl_configs, validate_finetune_config
+from pilerl.rl import FinetuneConfig, finetune
 from pilerl.rl.config import uses_demos
 from pilerl.rl.finetuning import flat_metrics
 from pilerl.runs import begin_run, finish_run, resolve_checkpoint
@@ -30,7 +30,6 @@ from pilerl.runtime import limit_threads
 
 log = logging.getLogger(__name__)
 register_configs()
-register_rl_configs()
 # budgets that may be raised to continue a finished run from its last.ckpt
 GROWABLE = ("curriculum.stages.*.frames", "time_budget_minutes")
 
@@ -40,12 +39,11 @@ def main(cfg: DictConfig) -> float:
     """Returns the winter-or-first group's success rate after fine-tuning (best.pt)."""
     limit_threads()
     config: FinetuneConfig = OmegaConf.to_object(cfg)
-    validate_finetune_config(config, inputs_exist=False)  # checkpoint given, settings sane
     config.checkpoint = str(resolve_checkpoint(config.checkpoint))
     warn_if_other_control_rate(config.checkpoint, config.env.control_hz)
     config.evaluation.video = resolve_videos(config.evaluation.video, where="evaluation.video")
     run_dir = config.output_dir
-    validate_finetune_config(config)  # and the inputs exist: all before any work
+    config.check_inputs()  # the inputs exist: all before any work
     inputs = {
         "checkpoint": config.checkpoint,
         "demos": config.demos if uses_demos(config) else None,

@@ -16,8 +16,9 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from pilerl.config import RecordConfig, register_configs
+from pilerl.config import register_configs
 from pilerl.data import EpisodeStore, RecordingPlan, record_demonstrations
+from pilerl.data.settings import RecordConfig
 from pilerl.runs import begin_run, finish_run
 from pilerl.runtime import limit_threads
 from pilerl.sim import make_gym_env

@@ -17,9 +17,10 @@ import logging
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
-from pilerl.config import ScoopConfig, register_configs
+from pilerl.config import register_configs
 from pilerl.evaluation import plot_scoop, run_episode, write_mp4
 from pilerl.evaluation.scoop_report import summarize, write_scoop_report, write_trace_csv
+from pilerl.evaluation.settings import ScoopConfig
 from pilerl.evaluation.video import annotate_frames, sensor_ranges
 from pilerl.operators import ScriptedScoopOperator
 from pilerl.rendering import resolve_videos

@@ -17,8 +17,9 @@ import time
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
-from pilerl.config import TeleopConfig, register_configs
+from pilerl.config import register_configs
 from pilerl.data import EpisodeMeta, EpisodeStore, record_episode
+from pilerl.data.settings import TeleopConfig
 from pilerl.operators.keyboard import KeyboardOperator, close_viewer, key_bindings_text
 from pilerl.runtime import limit_threads
 from pilerl.sim import make_gym_env

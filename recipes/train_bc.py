@@ -23,7 +23,7 @@ import hydra
 import torch
 from omegaconf import DictConfig, OmegaConf
 
-from pilerl.config import TrainBCConfig, register_configs
+from pilerl.config import register_configs
 from pilerl.data import EpisodeStore
 from pilerl.evaluation.closed_loop import run_closed_loop
 from pilerl.evaluation.evaluator import ActorController, build_envs, success_metrics
@@ -41,6 +41,7 @@ from pilerl.training import (
     write_ensemble_curves,
 )
 from pilerl.training.plots import plot_ensemble, plot_losses
+from pilerl.training.settings import TrainBCConfig
 
 log = logging.getLogger(__name__)
 register_configs()

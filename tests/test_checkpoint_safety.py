@@ -41,13 +41,12 @@ from omegaconf import OmegaConf
 
 from pilerl.config import register_configs
 from pilerl.policies import CheckpointError, actor_policy, load_actor
-from pilerl.rl import finetune, register_rl_configs
+from pilerl.rl import finetune
 from pilerl.rl.finetuning import RUN_CHECKPOINT
 from pilerl.rl.run_checkpoint import load_run
 
 ROOT = Path(__file__).resolve().parents[1]
 register_configs()
-register_rl_configs()
 
 
 @pytest.fixture(scope="module")

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from pilerl.config.schema import LoggerConfig
-from pilerl.loggers import BACKENDS, make_logger
+from pilerl.loggers import BACKENDS, LoggerConfig, make_logger
 
 
 def test_tensorboard_writes_an_event_file(tmp_path):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 import os
 import subprocess
@@ -27,8 +28,6 @@ from pilerl.rl import (
     PPOConfig,
     TD3BCConfig,
     finetune,
-    register_rl_configs,
-    validate_finetune_config,
 )
 from pilerl.rl.envs import ConditionMixtureEnv, make_training_env
 from pilerl.rl.evaluation import evaluate_groups, pool_groups
@@ -43,7 +42,6 @@ S_PRIME = [*S, "boom_pressure", "bucket_pressure", "pump_angle"]
 REWARDS = {"reward_fill": 1.0, "reward_success": 1.0, "reward_time": 1.0}
 
 register_configs()
-register_rl_configs()
 
 
 @pytest.fixture(scope="module")
@@ -314,32 +312,27 @@ def test_bad_configs_fail_before_any_work(cloned, datasets, tmp_path):
     checkpoint, demos_dir, _ = cloned
     config = tiny_config(checkpoint, demos_dir, tmp_path, tiny_ppo())
 
+    # every check runs when a config is built (dataclasses.replace builds a new one)
     unknown = copy.deepcopy(config)
     unknown.algorithm.name = "sac"
     with pytest.raises(ValueError, match="algorithm: unknown 'sac'"):
-        validate_finetune_config(unknown)
+        dataclasses.replace(unknown)
 
-    negative = copy.deepcopy(config)
-    negative.algorithm.regularizer_weight = -1.0
     with pytest.raises(ValueError, match="algorithm.regularizer_weight"):
-        validate_finetune_config(negative)
+        dataclasses.replace(config.algorithm, regularizer_weight=-1.0)
 
-    missing = copy.deepcopy(config)
-    missing.checkpoint = str(tmp_path / "nowhere.pt")
-    validate_finetune_config(missing, inputs_exist=False)  # a pipeline writes it later
+    missing = dataclasses.replace(config, checkpoint=str(tmp_path / "nowhere.pt"))
     with pytest.raises(FileNotFoundError, match="nowhere.pt"):
         finetune(missing, tmp_path / "run", progress=False)
     assert not (tmp_path / "run").exists()
 
-    uneven = copy.deepcopy(config)  # 64 frames per batch cannot split over 3 Ray collectors
-    uneven.collection = CollectionConfig(backend="ray", workers=3)
+    uneven = CollectionConfig(backend="ray", workers=3)  # 64 frames cannot split over 3
     with pytest.raises(ValueError, match="multiple of collection.workers"):
-        validate_finetune_config(uneven)
+        dataclasses.replace(config, collection=uneven)
 
-    bad_mixture = copy.deepcopy(config)
-    bad_mixture.curriculum.stages[0].conditions = {"summer": -1.0}
+    bad_mixture = [CurriculumStage(frames=128, conditions={"summer": -1.0})]
     with pytest.raises(ValueError, match=r"curriculum.stages\[0\].conditions.summer"):
-        validate_finetune_config(bad_mixture)
+        dataclasses.replace(config.curriculum, stages=bad_mixture)
 
     _, train, _ = datasets
     forest = make_actor("rf", sensors=S, stats=train.stats)

@@ -1,7 +1,8 @@
 """The pipeline recipe's typed config: demonstrations → BC → evaluation → RL → report.
 
-Kept apart from ``schema.py`` because it includes the RL schemas (``pilerl.rl.config``),
-which themselves build on ``schema.py``.
+Composed from the rooms' settings (recording in ``pilerl.data``, the controller in
+``pilerl.policies``, BC in ``pilerl.training``, closed-loop tests in ``pilerl.evaluation``,
+fine-tuning in ``pilerl.rl``); it only adds the checks that span several of them.
 """
 
 from __future__ import annotations
@@ -10,72 +11,13 @@ from dataclasses import dataclass, field
 
 from omegaconf import MISSING
 
+from pilerl.config.schema import EnvConfig
+from pilerl.data.settings import DemosConfig
+from pilerl.evaluation.settings import ClosedLoopConfig
+from pilerl.loggers import LoggerConfig
+from pilerl.policies.settings import PolicyConfig, SensorsConfig, check_controller
 from pilerl.rl.config import FinetuneConfig
-
-from . import checks
-from .schema import (
-    ClosedLoopConfig,
-    EnvConfig,
-    LoggerConfig,
-    PolicyConfig,
-    SensorsConfig,
-    check_controller,
-)
-
-
-@dataclass
-class PipelineDemosConfig:
-    """Scripted demonstrations recorded by the pipeline.
-
-    Attributes:
-        episodes: summer demonstrations (the paper: 72); the successful ones become D_II.
-        validation_episodes: winter_c demonstrations by operators who feel the contact
-            (telescope-pressure cue): the validation loss and the Fig. 3 / Fig. 5 data.
-        record_hz: recording (= control) rate [Hz]; 20 Hz is D_II's rate.
-        mistake_rate: share of operators who raise the boom too early.
-        seed: base seed of the recordings.
-        workers: recording processes.
-    """
-
-    episodes: int = 30
-    validation_episodes: int = 4
-    record_hz: float = 20.0
-    mistake_rate: float = 0.28
-    seed: int = 0
-    workers: int = 2
-
-    def __post_init__(self) -> None:
-        checks.positive_int("demos.episodes", self.episodes)
-        checks.positive_int("demos.validation_episodes", self.validation_episodes)
-        checks.positive("demos.record_hz", self.record_hz)
-        checks.fraction("demos.mistake_rate", self.mistake_rate)
-        checks.non_negative_int("demos.seed", self.seed)
-        checks.positive_int("demos.workers", self.workers)
-
-    def physics_hz_ok(self, env: EnvConfig) -> bool:
-        """Whether ``env`` simulates at least one physics step per recorded sample."""
-        return env.physics_hz >= self.record_hz
-
-
-@dataclass
-class PipelineBCConfig:
-    """Behaviour cloning in the pipeline (``pilerl.training.BCSettings``).
-
-    Attributes:
-        gradient_steps: training budget in gradient steps (epochs follow from the size).
-        batch_size, learning_rate, seed: as in ``recipes/train_bc.py``.
-    """
-
-    gradient_steps: int = 3000
-    batch_size: int = 512
-    learning_rate: float = 1e-3
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        checks.positive_int("bc.gradient_steps", self.gradient_steps)
-        checks.positive_int("bc.batch_size", self.batch_size)
-        checks.positive("bc.learning_rate", self.learning_rate)
-        checks.non_negative_int("bc.seed", self.seed)
+from pilerl.training.settings import BCStepConfig
 
 
 @dataclass
@@ -85,10 +27,10 @@ class PipelineConfig:
     ``conf/pipeline.yaml``), so every stage reads what the previous one wrote."""
 
     env: EnvConfig = field(default_factory=EnvConfig)
-    demos: PipelineDemosConfig = field(default_factory=PipelineDemosConfig)
+    demos: DemosConfig = field(default_factory=DemosConfig)
     policy: PolicyConfig = field(default_factory=PolicyConfig)
     sensors: SensorsConfig = field(default_factory=SensorsConfig)
-    bc: PipelineBCConfig = field(default_factory=PipelineBCConfig)
+    bc: BCStepConfig = field(default_factory=BCStepConfig)
     evaluation: ClosedLoopConfig = field(default_factory=ClosedLoopConfig)
     finetune: FinetuneConfig = field(default_factory=FinetuneConfig)
     logger: LoggerConfig = field(default_factory=LoggerConfig)

@@ -9,6 +9,7 @@
 | ``config`` | ``ActorConfig``: what a checkpoint rebuilds an actor from |
 | ``policy`` | ``SensorPolicy``: sensor keys -> normalised s, s' -> controller |
 | ``registry`` | ``make_controller`` and the registered names |
+| ``settings`` | ``PolicyConfig``, ``SensorsConfig``: the policy and sensors config groups |
 | ``actors`` | ``make_actor``: a ``TensorDictModule`` writing ``action`` (+ masks) |
 | ``stochastic`` | ``make_stochastic_actor``: ``ProbabilisticActor`` + ``TanhNormal`` for RL |
 | ``levenberg_marquardt`` | ``fit_lm`` |

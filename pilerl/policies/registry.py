@@ -10,6 +10,8 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from pilerl.registry import Registry, UnknownNameError
+
 from .attention import ANNet, DANNet
 from .config import ActorConfig
 from .controllers import NNet, NNetV2
@@ -19,11 +21,7 @@ from .random_forest import RandomForestController
 TRAINERS = ("levenberg_marquardt", "gradient", "fit")
 
 
-class UnknownControllerError(KeyError):
-    """Raised for a controller name that is not registered."""
-
-    def __str__(self) -> str:  # KeyError would quote the whole message
-        return str(self.args[0])
+UnknownControllerError = UnknownNameError  # raised for a controller name not registered
 
 
 @dataclass(frozen=True)
@@ -48,16 +46,21 @@ class ControllerSpec:
     uses_attention: bool = False
 
 
-CONTROLLERS: dict[str, ControllerSpec] = {
-    spec.name: spec
-    for spec in (
-        ControllerSpec("nnet", NNet, "Halbach et al. 2019", "levenberg_marquardt"),
-        ControllerSpec("nnetv2", NNetV2, "revised paper, NNetV2", "gradient"),
-        ControllerSpec("annet", ANNet, "revised paper, ANNet", "gradient", uses_attention=True),
-        ControllerSpec("dannet", DANNet, "revised paper, DANNet", "gradient", uses_attention=True),
-        ControllerSpec("rf", RandomForestController, "Yang et al. 2020 (ICRA)", "fit"),
-    )
-}
+CONTROLLERS: Registry[ControllerSpec] = Registry(
+    "controller",
+    {
+        spec.name: spec
+        for spec in (
+            ControllerSpec("nnet", NNet, "Halbach et al. 2019", "levenberg_marquardt"),
+            ControllerSpec("nnetv2", NNetV2, "revised paper, NNetV2", "gradient"),
+            ControllerSpec("annet", ANNet, "revised paper, ANNet", "gradient", uses_attention=True),
+            ControllerSpec(
+                "dannet", DANNet, "revised paper, DANNet", "gradient", uses_attention=True
+            ),
+            ControllerSpec("rf", RandomForestController, "Yang et al. 2020 (ICRA)", "fit"),
+        )
+    },
+)
 NEURAL_CONTROLLERS = tuple(n for n, s in CONTROLLERS.items() if s.controller.differentiable)
 
 
@@ -68,10 +71,6 @@ def available_controllers() -> list[str]:
 
 def get_spec(name: str) -> ControllerSpec:
     """The registered controller ``name``; unknown names fail with the list of known ones."""
-    if name not in CONTROLLERS:
-        raise UnknownControllerError(
-            f"unknown controller {name!r}; known controllers: {available_controllers()}"
-        )
     return CONTROLLERS[name]
 
 

@@ -2,7 +2,7 @@
 
 | module | what |
 |---|---|
-| ``config`` | ``FinetuneConfig`` and the algorithm schemas; ``register_rl_configs`` |
+| ``config`` | ``FinetuneConfig``, the learners' settings (``ALGORITHMS``), checked when built |
 | ``envs`` | ``ConditionMixtureEnv``: conditions drawn per episode, reward from named parts |
 | ``critics`` | value and Q networks over normalised sensors |
 | ``regularizers`` | BC on demo batches, MSE to the frozen cloned actor |
@@ -16,28 +16,28 @@ See docs/finetuning.md.
 """
 
 from .config import (
+    ALGORITHMS,
     CollectionConfig,
     CurriculumConfig,
     CurriculumStage,
     EvaluationConfig,
     FinetuneConfig,
+    LearnerConfig,
     PPOConfig,
     TD3BCConfig,
-    register_rl_configs,
-    validate_finetune_config,
 )
 from .finetuning import finetune, load_cloned_actor
 
 __all__ = [
+    "ALGORITHMS",
     "CollectionConfig",
     "CurriculumConfig",
     "CurriculumStage",
     "EvaluationConfig",
     "FinetuneConfig",
+    "LearnerConfig",
     "PPOConfig",
     "TD3BCConfig",
     "finetune",
     "load_cloned_actor",
-    "register_rl_configs",
-    "validate_finetune_config",
 ]

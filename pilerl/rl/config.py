@@ -1,77 +1,127 @@
-"""Typed configs of RL fine-tuning, registered in Hydra's ConfigStore.
+"""The RL room's settings: fine-tuning a cloned controller (``FinetuneConfig``).
 
-``FinetuneConfig`` is the primary schema (``finetune_schema``); the ``algorithm`` group
-holds ``PPOConfig`` (``ppo_schema``) or ``TD3BCConfig`` (``td3bc_schema``), chosen by its
-``name``. Every field is checked in ``validate_finetune_config`` before any work starts,
-so a bad value fails with the field's name, not deep inside a training loop.
+``FinetuneConfig`` is the finetune recipe's primary schema and ``pilerl.rl.finetune``'s
+argument; its ``algorithm`` node is one of the learners registered in ``ALGORITHMS``
+(``PPOConfig``, ``TD3BCConfig``: the ``algorithm`` config group), both built on
+``LearnerConfig``. Every field is checked in its dataclass's ``__post_init__``, so a bad
+value fails with the field's name when the config is built, not deep inside a training
+loop; ``FinetuneConfig.check_inputs`` then checks that the checkpoint and demonstrations
+exist (a pipeline writes them after building its config).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
-from pilerl.config.schema import EnvConfig, LoggerConfig
+from pilerl import checks
+from pilerl.config.schema import EnvConfig
+from pilerl.loggers import LoggerConfig
+from pilerl.registry import Registry
 
-ALGORITHMS = ("ppo", "td3bc")
 REGULARIZERS = ("bc_demo", "frozen_actor", "none")
 BACKENDS = ("single", "multiprocess", "ray")
 WINTER_CONDITIONS = ["winter_a", "winter_b", "winter_c", "winter_d"]
 
 
 @dataclass
-class PPOConfig:
+class LearnerConfig:
+    """What every learner of the ``algorithm`` group has (PPO, TD3+BC).
+
+    Attributes:
+        name: the registered algorithm (``ALGORITHMS``).
+        frames_per_batch: environment steps collected between updates.
+        actor_lr, critic_lr: Adam learning rates.
+        gamma: discount per control step (0.05 s at 20 Hz), in (0, 1].
+        critic_hidden: hidden layer widths of the value / each Q network.
+        critic_warmup_batches: first batches that train only the critic (the cloned actor
+            is kept until its value is known).
+    """
+
+    name: str = MISSING
+    frames_per_batch: int = 2048
+    actor_lr: float = 3e-4
+    critic_lr: float = 1e-3
+    gamma: float = 0.99
+    critic_hidden: list[int] = field(default_factory=lambda: [64, 64])
+    critic_warmup_batches: int = 2
+
+    def __post_init__(self) -> None:
+        checks.positive_int("algorithm.frames_per_batch", self.frames_per_batch)
+        checks.positive("algorithm.actor_lr", self.actor_lr)
+        checks.positive("algorithm.critic_lr", self.critic_lr)
+        if not (isinstance(self.gamma, int | float) and 0 < self.gamma <= 1):
+            raise ValueError(f"algorithm.gamma: must lie in (0, 1], got {self.gamma}")
+        if not self.critic_hidden or not all(
+            isinstance(w, int) and not isinstance(w, bool) and w >= 1 for w in self.critic_hidden
+        ):
+            raise ValueError(
+                f"algorithm.critic_hidden: must list layer widths >= 1, got {self.critic_hidden}"
+            )
+        checks.non_negative_int("algorithm.critic_warmup_batches", self.critic_warmup_batches)
+
+
+@dataclass
+class PPOConfig(LearnerConfig):
     """Clipped PPO (TorchRL ``ClipPPOLoss`` + ``GAE``) around the cloned actor.
 
     Attributes:
         name: ``ppo``.
-        frames_per_batch: environment steps collected between updates.
+        gamma: 0.995 per control step: a horizon of ~10 s at 20 Hz.
         epochs: passes over each collected batch.
         minibatch_size: transitions per gradient step.
-        actor_lr, critic_lr: Adam learning rates.
-        gamma, lmbda: discount and GAE lambda (per control step, 0.05 s at 20 Hz).
-        clip_epsilon: PPO ratio clip.
+        lmbda: GAE lambda, in [0, 1].
+        clip_epsilon: PPO ratio clip, in (0, 1).
         entropy_coeff: entropy bonus weight.
         critic_coeff: value-loss weight.
         max_grad_norm: gradient clipping of each update.
         init_scale: initial exploration std around the cloned action (pre-tanh units).
-        critic_hidden: hidden layer widths of the value network.
-        critic_warmup_batches: first batches that train only the value network (the
-            cloned actor is kept until its value is known).
         regularizer: ``bc_demo`` (MSE to demonstrated actions on demo batches),
             ``frozen_actor`` (MSE to the frozen cloned actor on the collected states) or
             ``none``.
         regularizer_weight: weight of that term in the actor loss (>= 0).
         regularizer_batch_size: demo transitions per gradient step (``bc_demo``).
+        (The rest: ``LearnerConfig``.)
     """
 
     name: str = "ppo"
-    frames_per_batch: int = 2048
+    gamma: float = 0.995
     epochs: int = 4
     minibatch_size: int = 256
-    actor_lr: float = 3e-4
-    critic_lr: float = 1e-3
-    gamma: float = 0.995
     lmbda: float = 0.95
     clip_epsilon: float = 0.2
     entropy_coeff: float = 0.0
     critic_coeff: float = 1.0
     max_grad_norm: float = 1.0
     init_scale: float = 0.3
-    critic_hidden: list[int] = field(default_factory=lambda: [64, 64])
-    critic_warmup_batches: int = 2
     regularizer: str = "frozen_actor"
     regularizer_weight: float = 0.1
     regularizer_batch_size: int = 256
 
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ("epochs", "minibatch_size", "regularizer_batch_size"):
+            checks.positive_int(f"algorithm.{name}", getattr(self, name))
+        for name in ("clip_epsilon", "max_grad_norm", "init_scale"):
+            checks.positive(f"algorithm.{name}", getattr(self, name))
+        for name in ("entropy_coeff", "critic_coeff", "regularizer_weight"):
+            checks.non_negative(f"algorithm.{name}", getattr(self, name))
+        if not 0 <= self.lmbda <= 1:
+            raise ValueError(f"algorithm.lmbda: must lie in [0, 1], got {self.lmbda}")
+        if self.clip_epsilon >= 1:
+            raise ValueError(f"algorithm.clip_epsilon: must lie in (0, 1), got {self.clip_epsilon}")
+        checks.one_of("algorithm.regularizer", self.regularizer, REGULARIZERS)
+
+    def uses_demos(self) -> bool:
+        """Whether this learner reads demonstrations (the ``bc_demo`` regulariser)."""
+        return self.regularizer == "bc_demo"
+
 
 @dataclass
-class TD3BCConfig:
+class TD3BCConfig(LearnerConfig):
     """TD3+BC (TorchRL ``TD3BCLoss``): twin Q, delayed actor, demos mixed into replay.
 
     Attributes:
@@ -81,34 +131,58 @@ class TD3BCConfig:
         batch_size: transitions per gradient step (demos + online).
         demo_fraction: share of each batch drawn from the demonstrations (0..1).
         buffer_size: online replay capacity [transitions].
-        actor_lr, critic_lr: Adam learning rates.
-        gamma: discount per control step.
-        tau: soft target update rate.
+        tau: soft target update rate, in (0, 1].
         alpha: TD3+BC's Q weight (the BC term has weight 1; larger = less BC).
         policy_delay: critic updates per actor update.
         policy_noise, noise_clip: target policy smoothing noise.
         exploration_sigma: std of the Gaussian noise added to the action when collecting.
-        critic_hidden: hidden widths of each Q network.
-        critic_warmup_batches: first batches that train only the Q networks.
+        (The rest: ``LearnerConfig``.)
     """
 
     name: str = "td3bc"
     frames_per_batch: int = 1000
+    actor_lr: float = 3e-5
+    critic_lr: float = 3e-4
+    critic_hidden: list[int] = field(default_factory=lambda: [128, 128])
     updates_per_batch: int = 250
     batch_size: int = 256
     demo_fraction: float = 0.25
     buffer_size: int = 200_000
-    actor_lr: float = 3e-5
-    critic_lr: float = 3e-4
-    gamma: float = 0.99
     tau: float = 0.005
     alpha: float = 2.5
     policy_delay: int = 2
     policy_noise: float = 0.1
     noise_clip: float = 0.3
     exploration_sigma: float = 0.1
-    critic_hidden: list[int] = field(default_factory=lambda: [128, 128])
-    critic_warmup_batches: int = 2
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ("updates_per_batch", "batch_size", "buffer_size", "policy_delay"):
+            checks.positive_int(f"algorithm.{name}", getattr(self, name))
+        checks.positive("algorithm.tau", self.tau)
+        for name in ("alpha", "policy_noise", "noise_clip", "exploration_sigma"):
+            checks.non_negative(f"algorithm.{name}", getattr(self, name))
+        if self.tau > 1:
+            raise ValueError(f"algorithm.tau: must lie in (0, 1], got {self.tau}")
+        if self.batch_size > self.buffer_size:
+            raise ValueError(
+                f"algorithm.batch_size ({self.batch_size}) exceeds algorithm.buffer_size "
+                f"({self.buffer_size})"
+            )
+        if not (isinstance(self.demo_fraction, int | float) and 0 <= self.demo_fraction <= 1):
+            raise ValueError(
+                f"algorithm.demo_fraction: must lie in [0, 1], got {self.demo_fraction}"
+            )
+
+    def uses_demos(self) -> bool:
+        """Whether this learner reads demonstrations (``demo_fraction > 0``)."""
+        return self.demo_fraction > 0
+
+
+# the ``algorithm`` group: name -> its settings (conf/algorithm/<name>.yaml extends them)
+ALGORITHMS: Registry[type[LearnerConfig]] = Registry(
+    "algorithm", {"ppo": PPOConfig, "td3bc": TD3BCConfig}
+)
 
 
 @dataclass
@@ -130,6 +204,20 @@ class CurriculumConfig:
 
     name: str = "custom"
     stages: list[CurriculumStage] = MISSING
+
+    def __post_init__(self) -> None:
+        if self.stages == MISSING:
+            return  # the schema itself; a curriculum group choice fills the stages
+        if not self.stages:
+            raise ValueError("curriculum.stages: need at least one stage")
+        for i, stage in enumerate(self.stages):
+            checks.positive(f"curriculum.stages[{i}].frames", stage.frames)
+            if not stage.conditions:
+                raise ValueError(f"curriculum.stages[{i}].conditions: empty mixture")
+            for condition, weight in stage.conditions.items():
+                checks.non_negative(f"curriculum.stages[{i}].conditions.{condition}", weight)
+            if sum(stage.conditions.values()) <= 0:
+                raise ValueError(f"curriculum.stages[{i}].conditions: weights sum to 0")
 
 
 @dataclass
@@ -153,6 +241,11 @@ class CollectionConfig:
     envs_per_worker: int = 8
     ray_init_kwargs: dict[str, Any] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        checks.one_of("collection.backend", self.backend, BACKENDS)
+        checks.positive_int("collection.workers", self.workers)
+        checks.positive_int("collection.envs_per_worker", self.envs_per_worker)
+
 
 @dataclass
 class EvaluationConfig:
@@ -162,7 +255,7 @@ class EvaluationConfig:
         groups: group name -> conditions pooled into one success rate.
         every_frames: evaluate every this many frames, and at frame 0 (0 = only before
             and after: no curve, ``best.pt`` is the last actor).
-        episodes: episodes per condition in a periodic evaluation.
+        episodes: episodes per condition in a periodic evaluation (picks ``best.pt``).
         final_episodes: episodes per condition before and after fine-tuning.
         seed: base seed of periodic evaluations.
         final_seed: base seed of the before/after evaluations (other starts than the
@@ -186,18 +279,47 @@ class EvaluationConfig:
     video_conditions: dict[str, str] = field(default_factory=dict)
     confidence: float = 0.95
 
+    def __post_init__(self) -> None:
+        if not self.groups or not all(self.groups.values()):
+            raise ValueError(f"evaluation.groups: each group needs conditions, got {self.groups}")
+        checks.non_negative_int("evaluation.every_frames", self.every_frames)
+        checks.positive_int("evaluation.episodes", self.episodes)
+        checks.positive_int("evaluation.final_episodes", self.final_episodes)
+        checks.positive_int("evaluation.workers", self.workers)
+        if not (isinstance(self.confidence, int | float) and 0 < self.confidence < 1):
+            raise ValueError(f"evaluation.confidence: must lie in (0, 1), got {self.confidence}")
+        unknown = sorted(set(self.video_conditions) - set(self.groups))
+        if unknown:
+            raise ValueError(
+                f"evaluation.video_conditions: groups {unknown} are not in evaluation.groups "
+                f"{sorted(self.groups)}"
+            )
+        checks.non_negative_int("evaluation.seed", self.seed)
+        checks.non_negative_int("evaluation.final_seed", self.final_seed)
+
+
+DEFAULT_REWARD_WEIGHTS = {
+    "reward_fill": 1.0,
+    "reward_spill": 1.0,
+    "reward_time": 1.0,
+    "reward_energy": 1.0,
+    "reward_success": 1.0,
+}
+
 
 @dataclass
 class FinetuneConfig:
     """The finetune recipe: RL fine-tuning of a cloned controller in the simulator.
 
     Attributes:
-        checkpoint: the cloned actor (``best.pt`` of ``recipes/train_bc.py``).
+        checkpoint: the cloned actor (``best.pt`` of ``recipes/train_bc.py``, or its run
+            directory); required.
         demos: dataset of demonstrations (``bc_demo`` regulariser, TD3+BC replay), or
             ``None``.
         env: simulator arguments; ``env.condition`` is replaced per episode by the
             curriculum's mixture.
-        algorithm: ``PPOConfig`` or ``TD3BCConfig``.
+        algorithm: a registered learner's settings (``ALGORITHMS``: ``PPOConfig`` or
+            ``TD3BCConfig``), chosen by the ``algorithm`` group.
         curriculum: condition mixtures and their frames.
         reward_weights: multiplier of each named reward part reported by the simulator
             in ``info`` (``reward_fill``, ``reward_success``...); the training reward is
@@ -207,25 +329,18 @@ class FinetuneConfig:
         seed: seeds torch, the collector envs and the replay sampling.
         logger: TorchRL metric logger (the ``logger`` group: csv, tensorboard, none).
         checkpoint_every_frames: write ``last.ckpt`` at least this often [frames].
-        time_budget_minutes: stop collecting after this wall time [min] (0 = no limit),
-            then evaluate and write the results as after the last frame.
+        time_budget_minutes: stop collecting after this wall time [min] (0 = no limit:
+            run the whole curriculum), then evaluate and write the results as after the
+            last frame.
         output_dir: run directory (resumed if it holds ``last.ckpt``).
     """
 
-    checkpoint: str | None = None  # required: checked by validate_finetune_config
+    checkpoint: str | None = None
     demos: str | None = None
     env: EnvConfig = field(default_factory=EnvConfig)
-    algorithm: Any = MISSING  # PPOConfig | TD3BCConfig, chosen by the algorithm group
+    algorithm: Any = MISSING  # a LearnerConfig, chosen by the algorithm group
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)
-    reward_weights: dict[str, float] = field(
-        default_factory=lambda: {
-            "reward_fill": 1.0,
-            "reward_spill": 1.0,
-            "reward_time": 1.0,
-            "reward_energy": 1.0,
-            "reward_success": 1.0,
-        }
-    )
+    reward_weights: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_REWARD_WEIGHTS))
     collection: CollectionConfig = field(default_factory=CollectionConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     seed: int = 0
@@ -235,185 +350,72 @@ class FinetuneConfig:
     output_dir: str = MISSING
 
     def __post_init__(self) -> None:
-        # the algorithm group fills ``algorithm``; a config built without one is checked
-        # when it is finally used (``finetune`` validates again)
-        if self.algorithm is not MISSING and self.algorithm != MISSING:
-            validate_finetune_config(self, inputs_exist=False)
+        if not self.reward_weights:
+            raise ValueError("reward_weights: name at least one reward part")
+        for part, weight in self.reward_weights.items():
+            checks.finite(f"reward_weights.{part}", weight)
+            if weight < 0:
+                raise ValueError(
+                    f"reward_weights.{part}: must be >= 0 (the simulator signs its parts), "
+                    f"got {weight}"
+                )
+        checks.non_negative_int("seed", self.seed)
+        checks.positive_int("checkpoint_every_frames", self.checkpoint_every_frames)
+        checks.non_negative("time_budget_minutes", self.time_budget_minutes)
+        if self.algorithm is MISSING or self.algorithm == MISSING:
+            return  # the schema itself: the algorithm group fills it
+        self._check_algorithm()
+
+    def _check_algorithm(self) -> None:
+        """The learner is registered and has what it needs from the rest of the config."""
+        algorithm = self.algorithm
+        if not isinstance(algorithm, LearnerConfig):
+            raise ValueError(
+                f"algorithm: must be one of the algorithm group's configs "
+                f"{ALGORITHMS.names()}, got {algorithm!r}"
+            )
+        ALGORITHMS.check("algorithm", algorithm.name)
+        if not isinstance(algorithm, ALGORITHMS[algorithm.name]):
+            raise ValueError(
+                f"algorithm: {algorithm.name!r} names {ALGORITHMS[algorithm.name].__name__}, "
+                f"got a {type(algorithm).__name__}"
+            )
+        if not self.checkpoint:
+            raise ValueError(
+                "checkpoint: required: a train_bc run directory or its best.pt "
+                "(e.g. checkpoint=outputs/bc/dannet)"
+            )
+        if isinstance(algorithm, PPOConfig):
+            if algorithm.regularizer == "bc_demo" and self.demos is None:
+                raise ValueError("algorithm.regularizer 'bc_demo' needs demos: a dataset directory")
+        elif isinstance(algorithm, TD3BCConfig) and algorithm.demo_fraction > 0:
+            if self.demos is None:
+                raise ValueError("algorithm.demo_fraction > 0 needs demos: a dataset directory")
+            if any(w != 1.0 for w in self.reward_weights.values()):
+                raise ValueError(
+                    "reward_weights: demonstrations carry the simulator's unweighted reward; "
+                    "TD3+BC with demo_fraction > 0 needs every weight = 1.0, got "
+                    f"{dict(self.reward_weights)}"
+                )
+        workers = self.collection.workers
+        if self.collection.backend == "ray" and algorithm.frames_per_batch % workers:
+            raise ValueError(
+                f"algorithm.frames_per_batch ({algorithm.frames_per_batch}) must be a multiple "
+                f"of collection.workers ({self.collection.workers}) for the ray backend (each "
+                "remote collector fills an equal share of a batch)"
+            )
+
+    def check_inputs(self) -> None:
+        """``FileNotFoundError`` unless the checkpoint exists, and the demonstrations too
+        if the learner reads them (PPO with the ``frozen_actor`` or no regulariser, and
+        TD3+BC with ``demo_fraction`` 0, need none, whatever ``demos`` says)."""
+        if not Path(self.checkpoint).is_file():
+            raise FileNotFoundError(f"checkpoint: no such actor checkpoint {self.checkpoint!r}")
+        if uses_demos(self) and not Path(self.demos).is_dir():
+            raise FileNotFoundError(f"demos: no such dataset directory {self.demos!r}")
 
 
 def uses_demos(config: FinetuneConfig) -> bool:
     """Whether the learner reads the demonstrations (PPO's ``bc_demo`` regulariser, TD3+BC
     with ``demo_fraction > 0``); only then are they loaded."""
-    algorithm = config.algorithm
-    if config.demos is None:
-        return False
-    if isinstance(algorithm, PPOConfig):
-        return algorithm.regularizer == "bc_demo"
-    return algorithm.demo_fraction > 0
-
-
-def _positive(where: str, value: float) -> None:
-    if not (
-        isinstance(value, (int, float))
-        and not isinstance(value, bool)
-        and math.isfinite(value)
-        and value > 0
-    ):
-        raise ValueError(f"{where}: must be a finite number > 0, got {value!r}")
-
-
-def _non_negative(where: str, value: float) -> None:
-    if not (
-        isinstance(value, (int, float))
-        and not isinstance(value, bool)
-        and math.isfinite(value)
-        and value >= 0
-    ):
-        raise ValueError(f"{where}: must be a finite number >= 0, got {value!r}")
-
-
-def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = True) -> None:
-    """Raise ``ValueError`` (naming the field) for anything that cannot be trained.
-
-    ``inputs_exist=False`` skips the checks that the checkpoint and demos exist (for a
-    pipeline that validates its settings before the steps that write them).
-    """
-    algorithm = config.algorithm
-    if not isinstance(algorithm, PPOConfig | TD3BCConfig):
-        raise ValueError(
-            f"algorithm: must be one of the algorithm group's configs {list(ALGORITHMS)}, "
-            f"got {algorithm!r}"
-        )
-    if getattr(algorithm, "name", None) not in ALGORITHMS:
-        raise ValueError(
-            f"algorithm: unknown {getattr(algorithm, 'name', algorithm)!r}; "
-            f"known: {list(ALGORITHMS)}"
-        )
-    if not config.checkpoint:
-        raise ValueError(
-            "checkpoint: required: a train_bc run directory or its best.pt "
-            "(e.g. checkpoint=outputs/bc/dannet)"
-        )
-    if inputs_exist and not Path(config.checkpoint).is_file():
-        raise FileNotFoundError(f"checkpoint: no such actor checkpoint {config.checkpoint!r}")
-    if inputs_exist and uses_demos(config) and not Path(config.demos).is_dir():
-        raise FileNotFoundError(f"demos: no such dataset directory {config.demos!r}")
-    if isinstance(algorithm, PPOConfig):
-        for name in ("frames_per_batch", "epochs", "minibatch_size", "regularizer_batch_size"):
-            _positive(f"algorithm.{name}", getattr(algorithm, name))
-        for name in ("actor_lr", "critic_lr", "clip_epsilon", "max_grad_norm", "init_scale"):
-            _positive(f"algorithm.{name}", getattr(algorithm, name))
-        for name in ("entropy_coeff", "critic_coeff", "regularizer_weight"):
-            _non_negative(f"algorithm.{name}", getattr(algorithm, name))
-        if not 0 <= algorithm.lmbda <= 1:
-            raise ValueError(f"algorithm.lmbda: must lie in [0, 1], got {algorithm.lmbda}")
-        if algorithm.clip_epsilon >= 1:
-            raise ValueError(
-                f"algorithm.clip_epsilon: must lie in (0, 1), got {algorithm.clip_epsilon}"
-            )
-        if algorithm.regularizer not in REGULARIZERS:
-            raise ValueError(
-                f"algorithm.regularizer: unknown {algorithm.regularizer!r}; "
-                f"known: {list(REGULARIZERS)}"
-            )
-        if algorithm.regularizer == "bc_demo" and config.demos is None:
-            raise ValueError("algorithm.regularizer 'bc_demo' needs demos: a dataset directory")
-    else:
-        for name in ("frames_per_batch", "updates_per_batch", "batch_size", "buffer_size"):
-            _positive(f"algorithm.{name}", getattr(algorithm, name))
-        for name in ("actor_lr", "critic_lr", "tau", "policy_delay"):
-            _positive(f"algorithm.{name}", getattr(algorithm, name))
-        for name in ("alpha", "policy_noise", "noise_clip", "exploration_sigma"):
-            _non_negative(f"algorithm.{name}", getattr(algorithm, name))
-        if algorithm.tau > 1:
-            raise ValueError(f"algorithm.tau: must lie in (0, 1], got {algorithm.tau}")
-        if algorithm.batch_size > algorithm.buffer_size:
-            raise ValueError(
-                f"algorithm.batch_size ({algorithm.batch_size}) exceeds algorithm.buffer_size "
-                f"({algorithm.buffer_size})"
-            )
-        if not 0 <= algorithm.demo_fraction <= 1:
-            raise ValueError(
-                f"algorithm.demo_fraction: must lie in [0, 1], got {algorithm.demo_fraction}"
-            )
-        if algorithm.demo_fraction > 0:
-            if config.demos is None:
-                raise ValueError("algorithm.demo_fraction > 0 needs demos: a dataset directory")
-            if any(w != 1.0 for w in config.reward_weights.values()):
-                raise ValueError(
-                    "reward_weights: demonstrations carry the simulator's unweighted reward; "
-                    "TD3+BC with demo_fraction > 0 needs every weight = 1.0, got "
-                    f"{dict(config.reward_weights)}"
-                )
-    if not algorithm.critic_hidden or not all(
-        isinstance(w, int) and not isinstance(w, bool) and w >= 1 for w in algorithm.critic_hidden
-    ):
-        raise ValueError(
-            f"algorithm.critic_hidden: must list layer widths >= 1, got {algorithm.critic_hidden}"
-        )
-    _non_negative("algorithm.critic_warmup_batches", algorithm.critic_warmup_batches)
-    if not 0 < algorithm.gamma <= 1:
-        raise ValueError(f"algorithm.gamma: must lie in (0, 1], got {algorithm.gamma}")
-    if not config.curriculum.stages:
-        raise ValueError("curriculum.stages: need at least one stage")
-    for i, stage in enumerate(config.curriculum.stages):
-        _positive(f"curriculum.stages[{i}].frames", stage.frames)
-        if not stage.conditions:
-            raise ValueError(f"curriculum.stages[{i}].conditions: empty mixture")
-        for condition, weight in stage.conditions.items():
-            _non_negative(f"curriculum.stages[{i}].conditions.{condition}", weight)
-        if sum(stage.conditions.values()) <= 0:
-            raise ValueError(f"curriculum.stages[{i}].conditions: weights sum to 0")
-    if not config.reward_weights:
-        raise ValueError("reward_weights: name at least one reward part")
-    for part, weight in config.reward_weights.items():
-        if not (isinstance(weight, (int, float)) and math.isfinite(weight)):
-            raise ValueError(f"reward_weights.{part}: must be finite, got {weight!r}")
-        if weight < 0:
-            raise ValueError(
-                f"reward_weights.{part}: must be >= 0 (the simulator signs its parts), got {weight}"
-            )
-    if config.collection.backend not in BACKENDS:
-        raise ValueError(
-            f"collection.backend: unknown {config.collection.backend!r}; known: {list(BACKENDS)}"
-        )
-    _positive("collection.workers", config.collection.workers)
-    _positive("collection.envs_per_worker", config.collection.envs_per_worker)
-    if (
-        config.collection.backend == "ray"
-        and algorithm.frames_per_batch % config.collection.workers
-    ):
-        raise ValueError(
-            f"algorithm.frames_per_batch ({algorithm.frames_per_batch}) must be a multiple of "
-            f"collection.workers ({config.collection.workers}) for the ray backend (each "
-            "remote collector fills an equal share of a batch)"
-        )
-    evaluation = config.evaluation
-    if not evaluation.groups or not all(evaluation.groups.values()):
-        raise ValueError(f"evaluation.groups: each group needs conditions, got {evaluation.groups}")
-    _non_negative("evaluation.every_frames", evaluation.every_frames)
-    _positive("evaluation.episodes", evaluation.episodes)
-    _positive("evaluation.final_episodes", evaluation.final_episodes)
-    _positive("evaluation.workers", evaluation.workers)
-    if not 0 < evaluation.confidence < 1:
-        raise ValueError(f"evaluation.confidence: must lie in (0, 1), got {evaluation.confidence}")
-    unknown = sorted(set(evaluation.video_conditions) - set(evaluation.groups))
-    if unknown:
-        raise ValueError(
-            f"evaluation.video_conditions: groups {unknown} are not in evaluation.groups "
-            f"{sorted(evaluation.groups)}"
-        )
-    _non_negative("evaluation.seed", evaluation.seed)
-    _non_negative("evaluation.final_seed", evaluation.final_seed)
-    _non_negative("seed", config.seed)
-    _positive("checkpoint_every_frames", config.checkpoint_every_frames)
-    _non_negative("time_budget_minutes", config.time_budget_minutes)
-
-
-def register_rl_configs() -> None:
-    """Put the fine-tuning schemas in Hydra's ConfigStore (idempotent)."""
-    store = ConfigStore.instance()
-    store.store(name="finetune_schema", node=FinetuneConfig)
-    store.store(group="algorithm", name="ppo_schema", node=PPOConfig)
-    store.store(group="algorithm", name="td3bc_schema", node=TD3BCConfig)
-    store.store(group="curriculum", name="curriculum_schema", node=CurriculumConfig)
+    return config.demos is not None and config.algorithm.uses_demos()

@@ -57,7 +57,7 @@ from pilerl.loggers import make_logger
 from pilerl.policies import CheckpointError, actor_policy, load_actor, save_actor
 
 from .collection import make_collector, restart_collection, sync_weights
-from .config import FinetuneConfig, PPOConfig, uses_demos, validate_finetune_config
+from .config import FinetuneConfig, PPOConfig, uses_demos
 from .envs import TrainingEnvFactory
 from .evaluation import evaluate_groups, plot_success_curve, pool_groups
 from .ppo import PPOLearner
@@ -565,16 +565,6 @@ def _row_step(line: str) -> int | None:
         return None
 
 
-def _check_inputs(config: FinetuneConfig) -> None:
-    """The checkpoint exists; the demonstrations exist if the learner reads them (PPO
-    with the ``frozen_actor`` or no regulariser, and TD3+BC with ``demo_fraction`` 0,
-    need none, whatever ``demos`` says)."""
-    if not Path(config.checkpoint).is_file():
-        raise FileNotFoundError(f"checkpoint: no such actor checkpoint {config.checkpoint!r}")
-    if uses_demos(config) and not Path(config.demos).is_dir():
-        raise FileNotFoundError(f"demos: no such dataset directory {config.demos!r}")
-
-
 def _rates(groups: dict) -> str:
     return ", ".join(
         f"{g} {r['successes']}/{r['episodes']} [{r['success_low']:.2f}, {r['success_high']:.2f}]"
@@ -602,8 +592,7 @@ def finetune(config: FinetuneConfig, run_dir: str | Path, *, progress: bool = Tr
 
     Running again with the same ``run_dir`` resumes from ``last.ckpt``.
     """
-    validate_finetune_config(config, inputs_exist=False)
-    _check_inputs(config)
+    config.check_inputs()  # its settings were checked when it was built
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     run = _Run(config, run_dir, progress=progress)

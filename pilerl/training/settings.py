@@ -1,0 +1,105 @@
+"""The training room's settings: behaviour cloning in the train_bc recipe and the pipeline.
+
+``TrainBCConfig`` is the primary schema of ``recipes/train_bc.py``; ``BCStepConfig`` is the
+pipeline's ``bc`` node. Every field is checked in ``__post_init__``: a bad value fails when
+the config is built, naming the field. The training numbers default to
+``pilerl.training.BCSettings``'s (the paper's), which says what they do.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from omegaconf import MISSING
+
+from pilerl import checks
+from pilerl.config.schema import EnvConfig
+from pilerl.evaluation.settings import ClosedLoopConfig
+from pilerl.loggers import LoggerConfig
+from pilerl.policies.settings import PolicyConfig, SensorsConfig, check_controller
+
+from .bc import BCSettings
+
+
+@dataclass
+class TrainBCConfig:
+    """The train_bc recipe: behaviour cloning of one controller on one dataset.
+
+    Attributes:
+        train_data: training dataset directory (``recipes/build_dataset.py``).
+        validation_data: held-out demonstrations for the validation loss, or ``None``.
+        epochs, batch_size, learning_rate, seed: ``pilerl.training.BCSettings`` (the
+            paper's defaults: RAdam, batch 512, lr 1e-3, 150 epochs, MSE).
+        gradient_steps: if set, replaces ``epochs`` for gradient training by as many epochs
+            as give about this many steps (at least one), so datasets of different sizes
+            get the same training budget (D_I has 27x the rows of D_II). Levenberg-Marquardt
+            rounds and the forest's fit do not depend on the dataset size; they keep
+            ``epochs``.
+        logger: the TorchRL metric logger (``logger`` group: csv, tensorboard, none).
+        trainer: ``gradient``, ``levenberg_marquardt`` or ``fit``; ``None`` = the
+            controller's default (NNet: Levenberg-Marquardt).
+        ensemble_seeds: > 1 trains that many seeds at once (``torch.func``) and plots
+            mean +- std curves (the paper's Fig. 4) instead of one model.
+        env, evaluation: the closed-loop test of the trained controller (the last step;
+            ``evaluation.episodes: 0`` skips it), written to ``<run dir>/evaluation``.
+    """
+
+    policy: PolicyConfig = field(default_factory=PolicyConfig)
+    sensors: SensorsConfig = field(default_factory=SensorsConfig)
+    train_data: str = MISSING
+    validation_data: str | None = None
+    epochs: int = BCSettings.epochs
+    gradient_steps: int | None = None
+    batch_size: int = BCSettings.batch_size
+    learning_rate: float = BCSettings.learning_rate
+    seed: int = BCSettings.seed
+    logger: LoggerConfig = field(default_factory=LoggerConfig)
+    trainer: str | None = None
+    ensemble_seeds: int = 1
+    env: EnvConfig = field(default_factory=EnvConfig)
+    evaluation: ClosedLoopConfig = field(default_factory=lambda: ClosedLoopConfig(episodes=0))
+    output_dir: str = MISSING
+
+    def __post_init__(self) -> None:
+        from pilerl.policies.registry import TRAINERS
+
+        if self.train_data != MISSING:
+            checks.path("train_data", self.train_data)
+        if self.validation_data is not None:
+            checks.path("validation_data", self.validation_data)
+        checks.positive_int("epochs", self.epochs)
+        if self.gradient_steps is not None:
+            checks.positive_int("gradient_steps", self.gradient_steps)
+        checks.positive_int("batch_size", self.batch_size)
+        checks.positive("learning_rate", self.learning_rate)
+        checks.non_negative_int("seed", self.seed)
+        if self.trainer is not None:
+            checks.one_of("trainer", self.trainer, TRAINERS)
+        checks.positive_int("ensemble_seeds", self.ensemble_seeds)
+        if self.ensemble_seeds > 1 and self.evaluation.episodes > 0:
+            raise ValueError(
+                "evaluation.episodes: an ensemble (ensemble_seeds > 1) has no one "
+                "controller to test in closed loop; set evaluation.episodes=0"
+            )
+        check_controller(self.policy, self.sensors, trainer=self.trainer)
+
+
+@dataclass
+class BCStepConfig:
+    """Behaviour cloning in the pipeline (``pilerl.training.BCSettings``).
+
+    Attributes:
+        gradient_steps: training budget in gradient steps (epochs follow from the size).
+        batch_size, learning_rate, seed: as in ``recipes/train_bc.py``.
+    """
+
+    gradient_steps: int = 3000
+    batch_size: int = BCSettings.batch_size
+    learning_rate: float = BCSettings.learning_rate
+    seed: int = BCSettings.seed
+
+    def __post_init__(self) -> None:
+        checks.positive_int("bc.gradient_steps", self.gradient_steps)
+        checks.positive_int("bc.batch_size", self.batch_size)
+        checks.positive("bc.learning_rate", self.learning_rate)
+        checks.non_negative_int("bc.seed", self.seed)
