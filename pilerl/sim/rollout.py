@@ -61,8 +61,11 @@ def make_rollout_env(
 
 
 def sensor_names(env: SimulatorBatchEnv) -> list[str]:
-    """The simulator's sensor names, in its observation space's order."""
-    return list(env.simulators[0].observation_space.spaces)
+    """The simulator's sensor names, in the order it declares them (its ``sensor_units``;
+    Gymnasium's ``Dict`` space sorts them by name, which is the order otherwise)."""
+    simulator = env.simulators[0]
+    declared = getattr(simulator.unwrapped, "sensor_units", None)
+    return list(declared) if declared else list(simulator.observation_space.spaces)
 
 
 def control_period_s(env: SimulatorBatchEnv) -> float:
