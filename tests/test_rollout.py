@@ -61,8 +61,8 @@ def test_a_batched_rollout_is_the_single_rollouts_of_consecutive_seeds():
         for key in mine.keys(include_nested=True, leaves_only=True):
             assert torch.equal(mine.get(key), theirs.get(key)), key
     # each episode starts from its own seeded pose; ended rows repeat the episode's last row
-    starts = batch.data.get("start_distance_m")[:, 0, 0]
-    assert len(set(starts.tolist())) == 3
+    starts = [batch.info(i, "start_distance_m")[0] for i in range(3)]
+    assert len(set(starts)) == 3
     shortest = int(np.argmin(batch.lengths))
     tail = batch.data[shortest, batch.lengths[shortest] - 1 :]
     assert (tail.get(("next", "done")) == True).all()  # noqa: E712
@@ -193,7 +193,9 @@ def test_a_rollout_runs_any_simulator_that_ends_its_episodes():
     run = rollout(env, Push(), seed=0)
     assert run.lengths == [100, 100]  # pushed past the target: truncated at 100 steps
     assert bool(run.episode(0).get(("next", "truncated"))[-1])
-    assert torch.isnan(run.data.get("fill_fraction")).all()
+    assert np.isnan(run.info(0, "fill_fraction")).all()
+    with pytest.raises(KeyError, match="'success' was not carried"):
+        run.info(0, "success")
 
 
 def test_fine_tuning_evaluates_the_actor_in_memory_as_it_is_now():

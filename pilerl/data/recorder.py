@@ -30,6 +30,7 @@ from pilerl.operators import OperatorModule, make_scripted_expert
 from pilerl.operators.module import ACTION_KEY, LABEL_KEY, PHASE_KEY
 from pilerl.runtime import process_pool
 from pilerl.sim.rollout import (
+    Rollout,
     control_period_s,
     make_rollout_env,
     rollout,
@@ -104,14 +105,16 @@ def record_episode(env: SimulatorBatchEnv, operator, *, seed: int) -> tuple[Tens
     with ``info_keys=RECORDED_INFO``); returns (schema-v1 episode, reset info, final info)
     (the info entries the env carries and the simulator reported)."""
     policy = OperatorModule.for_env([operator], env)
-    rows = rollout(env, policy, seed=seed).episode(0)
+    run = rollout(env, policy, seed=seed)
+    rows = run.episode(0)
     episode = episode_from_rollout(rows, sensors=sensor_names(env), dt=control_period_s(env))
-    return episode, _info(rows[0]), _info(rows.get("next")[-1])
+    return episode, _info(run, 0, at=0), _info(run, 0, at=-1)
 
 
-def _info(row: TensorDictBase) -> dict:
-    """The ``RECORDED_INFO`` entries of one row that the simulator reported."""
-    values = {k: float(row.get(k)[0]) for k in RECORDED_INFO if k in row}
+def _info(run: Rollout, episode: int, *, at: int) -> dict[str, float]:
+    """The ``RECORDED_INFO`` entries the simulator reported at reset (``at=0``) or after the
+    last step (``at=-1``) of an episode."""
+    values = {k: float(run.info(episode, k)[at]) for k in RECORDED_INFO if k in run.info_keys}
     return {k: v for k, v in values.items() if not math.isnan(v)}
 
 
@@ -138,7 +141,7 @@ def _record_chunk(
     recorded = []
     for i, operator in enumerate(operators):
         rows = run.episode(i)
-        start, final = _info(rows[0]), _info(rows.get("next")[-1])
+        start, final = _info(run, i, at=0), _info(run, i, at=-1)
         condition = getattr(env.simulators[i].unwrapped, "condition", None)
         style = getattr(operator, "style", None)
         meta = EpisodeMeta(

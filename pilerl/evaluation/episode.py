@@ -125,9 +125,9 @@ def episode_of(
     """Episode ``index`` of a rollout as NumPy traces (phase names from ``phases``)."""
     rows = run.episode(index)
     after = rows.get("next")
-    info_keys = [k for k in EPISODE_INFO if k in rows]
-    start_info = _reported({k: float(rows.get(k)[0, 0]) for k in info_keys})
-    final_info = _reported({k: float(after.get(k)[-1, 0]) for k in info_keys})
+    info = {k: run.info(index, k) for k in EPISODE_INFO if k in run.info_keys}
+    start_info = _reported({k: float(v[0]) for k, v in info.items()})
+    final_info = _reported({k: float(v[-1]) for k, v in info.items()})
     steps = len(rows)
     phase_names = (
         [phases[i] for i in rows.get("phase").tolist()] if phases and "phase" in rows else []
@@ -137,7 +137,7 @@ def episode_of(
         sensors={k: after.get(k)[:, 0].numpy().astype(np.float64) for k in sensors},
         actions=rows.get("action").numpy(),
         rewards=after.get("reward")[:, 0].numpy().astype(np.float64),
-        traces={k: after.get(k)[:, 0].numpy() for k in INFO_TRACES if k in start_info},
+        traces={k: info[k][1:] for k in INFO_TRACES if k in start_info},
         final_info=final_info,
         start_info=start_info,
         start_sensors={k: float(rows.get(k)[0, 0]) for k in sensors},

@@ -25,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictModuleBase
 from tqdm import tqdm
 
@@ -33,6 +32,7 @@ from pilerl.io import atomic_path, write_text_atomic
 from pilerl.operators import OperatorModule, OperatorStyle, make_scripted_expert
 from pilerl.runtime import process_pool
 from pilerl.sim.rollout import (
+    Rollout,
     RowByRow,
     control_names,
     control_period_s,
@@ -218,59 +218,43 @@ def _run_chunk(controller, plan: EvaluationPlan, condition: str, first: int, cou
     boom = names.index("boom") if "boom" in names else None
     return [
         episode_record(
-            run.episode(i),
-            controller=controller.name,
-            condition=condition,
-            index=first + i,
-            seed=run.seeds[i],
-            boom=boom,
+            run, i, controller=controller.name, condition=condition, index=first + i, boom=boom
         )
         for i in range(count)
     ]
 
 
 def episode_record(
-    episode: TensorDictBase,
-    *,
-    controller: str,
-    condition: str,
-    index: int,
-    seed: int,
-    boom: int | None,
+    run: Rollout, episode: int, *, controller: str, condition: str, index: int, boom: int | None
 ) -> dict:
-    """One row of ``episodes.csv`` from an episode's rollout rows (batch ``[T]``)."""
-    after = episode.get("next")
+    """One row of ``episodes.csv``: episode ``episode`` of ``run`` (evaluation index
+    ``index``), from its actions and the ``EPISODE_INFO`` the simulator reported."""
 
     def final(key: str, default: float = math.nan) -> float:
-        value = float(after.get(key)[-1, 0])
+        value = float(run.info(episode, key)[-1])
         return default if math.isnan(value) else value
 
-    def trace(key: str) -> np.ndarray:
-        values = after.get(key)[:, 0].numpy()
-        return np.where(np.isnan(values), 0.0, values)
+    def trace(key: str) -> np.ndarray:  # after each step, 0 where not reported
+        return np.nan_to_num(run.info(episode, key)[1:], nan=0.0)
 
-    elapsed = after.get("elapsed_s")[:, 0].numpy()
+    elapsed = run.info(episode, "elapsed_s")[1:]
     depth = trace("cutting_depth_m")
-    lifted = (
-        np.flatnonzero(episode.get("action")[:, boom].numpy() > LIFT_COMMAND)
-        if (boom is not None)
-        else np.array([], dtype=int)
-    )
+    actions = run.episode(episode).get("action").numpy()
+    lifted = np.flatnonzero(actions[:, boom] > LIFT_COMMAND) if boom is not None else []
     dug_in = np.flatnonzero(depth >= PENETRATION_M)
     first_lift_s = float(elapsed[lifted[0]]) if len(lifted) else math.nan
     penetration_s = float(elapsed[dug_in[0]]) if len(dug_in) else math.nan
     success = bool(final("success", 0.0))
     tipped = bool(final("tipped", 0.0))
     finished = bool(final("scoop_finished", 0.0))
-    rewards = after.get("reward")[:, 0].numpy().astype(np.float64)
-    start = episode[0]
+    rewards = run.episode(episode).get(("next", "reward"))[:, 0].numpy().astype(np.float64)
     return {
         "controller": controller,
         "condition": condition,
         "episode": index,
-        "seed": seed,
-        "start_distance_m": float(start.get("start_distance_m")[0]),
-        "approach_angle_rad": float(start.get("approach_angle_rad")[0]),
+        "seed": run.seeds[episode],
+        "start_distance_m": float(run.info(episode, "start_distance_m")[0]),
+        "approach_angle_rad": float(run.info(episode, "approach_angle_rad")[0]),
         "fill_fraction": final("fill_fraction"),
         "success": success,
         "scoop_finished": finished,

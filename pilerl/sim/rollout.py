@@ -14,10 +14,10 @@ rollout ends when all have. The result's tensordict has batch ``[N, T]``
 (``T`` = the longest episode); an ended episode's rows repeat its last row, and
 ``Rollout.episode(i)`` cuts episode ``i`` to its own length.
 
-Each row ``t`` holds the readings before step ``t`` (sensors, and the ``info_keys`` of
+Each row ``t`` holds the readings before step ``t`` (sensors, and the ``info`` columns of
 the reset or the previous step), what the policy wrote, and under ``"next"`` the
-readings, ``info_keys``, ``reward`` and end flags after it: the layout of a
-demonstration episode (``pilerl.data.schema``).
+readings, ``info``, ``reward`` and end flags after it: the layout of a demonstration
+episode (``pilerl.data.schema``).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from tensordict.nn import TensorDictModuleBase
 from tqdm import tqdm
 
 from .registry import make_gym_env
-from .torchrl_env import SimulatorBatchEnv
+from .torchrl_env import INFO_KEY, SimulatorBatchEnv
 
 MAX_STEPS = 1_000_000  # a bound for simulators that never end; episodes end long before
 PARTIAL_STEP_KEY = "_step"  # TorchRL's mask of the simulators a partial step steps
@@ -47,9 +47,9 @@ def make_rollout_env(
 ) -> SimulatorBatchEnv:
     """``num_envs`` simulators ``simulator(**env_kwargs)`` as one TorchRL env for ``rollout``.
 
-    ``info_keys`` are the ``info`` entries copied into every row (float64, NaN where the
-    simulator does not report one); the reward is kept in float64, as the simulator
-    reports it.
+    ``info_keys`` are the ``info`` entries copied into every row (one float64 column each
+    of the entry ``info``, NaN where the simulator does not report one; ``Rollout.info``
+    reads them by name); the reward is kept in float64, as the simulator reports it.
     """
     kwargs = dict(env_kwargs)
     return SimulatorBatchEnv(
@@ -86,6 +86,7 @@ class Rollout:
         data: batch ``[N, T]``; rows past an episode's end repeat its last row.
         lengths: control steps of each episode.
         seeds: env seed of each episode.
+        info_keys: the env's ``info`` columns (``Rollout.info`` reads them by name).
         frames: per episode, rendered RGB frames (empty unless asked for); frame ``k``
             shows the state after ``k * frame_stride`` steps, and the final state when
             the episode's length is a multiple of ``frame_stride``.
@@ -95,12 +96,24 @@ class Rollout:
     data: TensorDictBase
     lengths: list[int]
     seeds: list[int]
+    info_keys: tuple[str, ...] = ()
     frames: list[list[np.ndarray]] = field(default_factory=list)
     frame_stride: int = 0
 
     def episode(self, index: int) -> TensorDictBase:
         """Episode ``index``'s rows, batch ``[lengths[index]]``."""
         return self.data[index, : self.lengths[index]]
+
+    def info(self, index: int, key: str) -> np.ndarray:
+        """``info[key]`` of episode ``index``, float64 [length + 1]: at reset, then after
+        each step (NaN where the simulator did not report it)."""
+        if key not in self.info_keys:
+            raise KeyError(f"Rollout.info: {key!r} was not carried; info_keys {self.info_keys}")
+        column = self.info_keys.index(key)
+        rows = self.episode(index)
+        start = rows.get(INFO_KEY)[:1, column]
+        after = rows.get(("next", INFO_KEY))[:, column]
+        return torch.cat([start, after]).numpy()
 
 
 def rollout(
@@ -171,6 +184,7 @@ def rollout(
         data=data,
         lengths=lengths,
         seeds=[seed + i for i in range(n)],
+        info_keys=env.info_keys,
         frames=frames,
         frame_stride=frame_stride,
     )
