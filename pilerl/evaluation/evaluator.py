@@ -44,7 +44,7 @@ from pilerl.sim.torchrl_env import SimulatorBatchEnv
 from .metrics import wilson_interval
 
 # ``info`` entries an episode record is made of (NaN where a simulator reports none)
-EPISODE_INFO = (
+EVALUATION_INFO = (
     "start_distance_m",
     "approach_angle_rad",
     "fill_fraction",
@@ -177,7 +177,7 @@ def _cached_env(plan: EvaluationPlan, condition: str, num_envs: int) -> Simulato
             plan.simulator,
             {**plan.env_kwargs, "condition": condition},
             num_envs=num_envs,
-            info_keys=EPISODE_INFO,
+            info_keys=EVALUATION_INFO,
         )
     return _ENVS[key]
 
@@ -228,7 +228,7 @@ def episode_record(
     run: Rollout, episode: int, *, controller: str, condition: str, index: int, boom: int | None
 ) -> dict:
     """One row of ``episodes.csv``: episode ``episode`` of ``run`` (evaluation index
-    ``index``), from its actions and the ``EPISODE_INFO`` the simulator reported."""
+    ``index``), from its actions and the ``EVALUATION_INFO`` the simulator reported."""
 
     def final(key: str, default: float = math.nan) -> float:
         value = float(run.info(episode, key)[-1])
