@@ -19,14 +19,15 @@ from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import register_configs
 from pilerl.evaluation import plot_scoop, run_episode, write_mp4
+from pilerl.evaluation.episode import make_episode_env
 from pilerl.evaluation.scoop_report import summarize, write_scoop_report, write_trace_csv
 from pilerl.evaluation.settings import ScoopConfig
 from pilerl.evaluation.video import annotate_frames, sensor_ranges
-from pilerl.operators import ScriptedScoopOperator
+from pilerl.operators import OperatorModule, make_scripted_expert
 from pilerl.rendering import resolve_videos
 from pilerl.runs import begin_run, finish_run
 from pilerl.runtime import limit_threads
-from pilerl.sim import make_gym_env
+from pilerl.sim.rollout import control_period_s
 
 log = logging.getLogger(__name__)
 register_configs()
@@ -43,9 +44,9 @@ def main(cfg: DictConfig) -> None:
 
     # --- build every env first: a bad condition or parameter fails before any work
     envs = {
-        condition: make_gym_env(
+        condition: make_episode_env(
             config.env.simulator,
-            **config.env.make_kwargs(
+            config.env.make_kwargs(
                 condition=condition,
                 render_mode="rgb_array" if video else None,
                 render_size=(config.render_height, config.render_width),
@@ -60,11 +61,12 @@ def main(cfg: DictConfig) -> None:
 
     # --- one scripted scoop per condition
     for condition, env in envs.items():
-        operator = ScriptedScoopOperator(style, dt=env.unwrapped.dt)
+        operator = make_scripted_expert(dt=control_period_s(env), style=style)
+        policy = OperatorModule.for_env([operator], env)
         episode = run_episode(
-            env, operator.act, seed=config.seed, render=video, progress=f"scoop {condition}"
+            env, policy, seed=config.seed, render=video, progress=f"scoop {condition}"
         )
-        ranges = sensor_ranges(env)
+        ranges = sensor_ranges(env.simulators[0])
         env.close()
         episodes[condition] = episode
         summaries[condition] = summarize(episode)

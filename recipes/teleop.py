@@ -19,10 +19,11 @@ from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import register_configs
 from pilerl.data import EpisodeMeta, EpisodeStore, record_episode
+from pilerl.data.recorder import RECORDED_INFO
 from pilerl.data.settings import TeleopConfig
 from pilerl.operators.keyboard import KeyboardOperator, close_viewer, key_bindings_text
 from pilerl.runtime import limit_threads
-from pilerl.sim import make_gym_env
+from pilerl.sim.rollout import make_rollout_env
 
 log = logging.getLogger(__name__)
 register_configs()
@@ -39,8 +40,8 @@ def main(cfg: DictConfig) -> None:
         )
     import mujoco.viewer  # imported here: it opens a window
 
-    env = make_gym_env(config.env.simulator, **config.env.make_kwargs())
-    sim = env.unwrapped
+    env = make_rollout_env(config.env.simulator, config.env.make_kwargs(), info_keys=RECORDED_INFO)
+    sim = env.simulators[0].unwrapped
     store = EpisodeStore.create(
         config.out_dir,
         sensors=sim.sensor_units,
@@ -53,14 +54,17 @@ def main(cfg: DictConfig) -> None:
     viewer = mujoco.viewer.launch_passive(sim.model, sim.data, key_callback=operator.on_key)
     try:
 
-        def act(sensors):  # paced to real time, the viewer refreshed every step
-            viewer.sync()
-            time.sleep(sim.dt)
-            return operator.act(sensors)
+        class Paced:  # the keyboard, paced to real time, the viewer refreshed every step
+            def reset(self):
+                operator.reset()
+
+            def act(self, sensors):
+                viewer.sync()
+                time.sleep(sim.dt)
+                return operator.act(sensors)
 
         for index in range(config.episodes):
-            operator.reset()
-            episode, start, final = record_episode(env, act, seed=config.seed + index)
+            episode, start, final = record_episode(env, Paced(), seed=config.seed + index)
             meta = store.append(
                 episode,
                 EpisodeMeta(

@@ -211,7 +211,7 @@ def constant_actor(checkpoint, path, action_pre_tanh: list[float]):
 
 
 def test_evaluating_a_rewritten_checkpoint_sees_the_new_weights(cloned, tmp_path):
-    """Fine-tuning rewrites ``evaluated.pt`` between evaluations: no stale actor."""
+    """A checkpoint rewritten in place is read anew by the next evaluation: no stale actor."""
     checkpoint, _, _ = cloned
     path = tmp_path / "evaluated.pt"
     kwargs = {"simulator": "pile_loader", "env_kwargs": {}, "episodes": 1, "seed": 0}

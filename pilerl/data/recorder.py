@@ -1,9 +1,15 @@
 """Record demonstrations: run operators in a simulator and store schema-v1 episodes.
 
-``record_demonstrations`` draws one operator style per episode (``sample_style``), runs
-the episodes in worker processes (one intra-op thread each) and appends them, in episode
-order, to an ``EpisodeStore`` from this process only (the store also takes a lock, so
-several recording processes may share one dataset).
+``record_demonstrations`` draws one operator per episode (``make_scripted_expert`` with the
+episode's own generator), runs the episodes as batched rollouts (``pilerl.sim.rollout``,
+an ``OperatorModule`` as the policy) in worker processes (one intra-op thread each) and
+appends them, in episode order, to an ``EpisodeStore`` from this process only (the store
+also takes a lock, so several recording processes may share one dataset).
+
+A rollout's rows already are a schema episode: ``episode_from_rollout`` only picks the
+schema's keys, the operator's clean label as ``action`` and, when an operator's executed
+command differed from its label (executed-command perturbations), that command as the
+extra column ``executed_action``.
 """
 
 from __future__ import annotations
@@ -12,22 +18,32 @@ import dataclasses
 import json
 import math
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
-import gymnasium as gym
 import numpy as np
 import torch
-from tensordict import TensorDict
+from tensordict import TensorDict, TensorDictBase
 from tqdm import tqdm
 
-from pilerl.evaluation import Episode, run_episode
-from pilerl.operators import ScriptedScoopOperator, phase_index, sample_style
+from pilerl.operators import OperatorModule, make_scripted_expert
+from pilerl.operators.module import ACTION_KEY, LABEL_KEY, PHASE_KEY
 from pilerl.runtime import process_pool
-from pilerl.sim import make_gym_env
+from pilerl.sim.rollout import (
+    Rollout,
+    control_period_s,
+    make_rollout_env,
+    rollout,
+    sensor_names,
+)
+from pilerl.sim.torchrl_env import SimulatorBatchEnv
 
 from .schema import EpisodeMeta, SchemaError, make_episode
 from .store import EpisodeStore
+
+EXECUTED_KEY = "executed_action"  # the executed command, where it differs from the label
+RECORDED_INFO = ("start_distance_m", "approach_angle_rad", "fill_fraction", "success")
+MAX_EPISODES_PER_ROLLOUT = 8  # TorchRL's per-step cost is paid once for a chunk's episodes
 
 
 @dataclass(frozen=True)
@@ -58,90 +74,123 @@ class RecordingPlan:
         return self.seed * 100_000 + index
 
 
-def record_episode(
-    env: gym.Env,
-    act: Callable[[dict], np.ndarray],
-    *,
-    seed: int,
-    phase: Callable[[], str] | None = None,
-) -> tuple[TensorDict, dict, dict]:
-    """Run one episode; returns (schema-v1 episode, reset info, final info).
+def episode_from_rollout(rows: TensorDictBase, *, sensors: Sequence[str], dt: float) -> TensorDict:
+    """One episode's rollout rows (batch ``[T]``) as a schema-v1 episode.
 
-    ``phase`` (optional) names the operator's phase at each step; it is stored as the
-    extra per-step key ``phase`` (index into ``pilerl.operators.PHASES``).
+    ``action`` is the policy's label (``action_label``) where it wrote one, else the
+    executed ``action``; the executed command is kept as ``executed_action`` when it
+    differs from the label in any row; ``phase`` is kept when the policy wrote it.
     """
-    run = run_episode(env, act, seed=seed, phase=phase)
-    return episode_tensordict(run), run.start_info, run.final_info
-
-
-def episode_tensordict(run: Episode) -> TensorDict:
-    """A run as a schema-v1 episode: each row's readings before and after its action."""
-    after = {k: torch.as_tensor(v, dtype=torch.float32) for k, v in run.sensors.items()}
-    before = {
-        k: torch.cat([torch.tensor([run.start_sensors[k]]), v[:-1]]) for k, v in after.items()
-    }
-    dt = float(run.time_s[0])
+    after = rows.get("next")
+    executed = rows.get(ACTION_KEY)
+    label = rows.get(LABEL_KEY, executed)
     episode = make_episode(
-        sensors=before,
-        next_sensors=after,
-        actions=torch.as_tensor(run.actions),
-        time_s=torch.arange(len(run.actions), dtype=torch.float64) * dt,
-        rewards=torch.as_tensor(run.rewards),
-        terminated=run.terminated,
-        truncated=run.truncated,
+        sensors={k: rows.get(k) for k in sensors},
+        next_sensors={k: after.get(k) for k in sensors},
+        actions=label,
+        time_s=torch.arange(len(rows), dtype=torch.float64) * dt,
+        rewards=after.get("reward"),
+        terminated=bool(after.get("terminated")[-1]),
+        truncated=bool(after.get("truncated")[-1]),
     )
-    if run.phases:
-        episode["phase"] = torch.tensor([phase_index(p) for p in run.phases])
+    if not torch.equal(label, executed):
+        episode[EXECUTED_KEY] = executed.to(torch.float32).clone()
+    if PHASE_KEY in rows:
+        episode[PHASE_KEY] = rows.get(PHASE_KEY).clone()
     return episode
 
 
-def _record_one(plan: RecordingPlan, index: int) -> tuple[TensorDict, EpisodeMeta]:
-    """Worker: record episode ``index`` of ``plan`` (runs in a child process)."""
+def record_episode(env: SimulatorBatchEnv, operator, *, seed: int) -> tuple[TensorDict, dict, dict]:
+    """Run ``operator`` for one episode of ``env`` (one simulator, from ``make_rollout_env``
+    with ``info_keys=RECORDED_INFO``); returns (schema-v1 episode, reset info, final info)
+    (the info entries the env carries and the simulator reported)."""
+    policy = OperatorModule.for_env([operator], env)
+    run = rollout(env, policy, seed=seed)
+    rows = run.episode(0)
+    episode = episode_from_rollout(rows, sensors=sensor_names(env), dt=control_period_s(env))
+    return episode, _info(run, 0, at=0), _info(run, 0, at=-1)
+
+
+def _info(run: Rollout, episode: int, *, at: int) -> dict[str, float]:
+    """The ``RECORDED_INFO`` entries the simulator reported at reset (``at=0``) or after the
+    last step (``at=-1``) of an episode."""
+    values = {k: float(run.info(episode, k)[at]) for k in RECORDED_INFO if k in run.info_keys}
+    return {k: v for k, v in values.items() if not math.isnan(v)}
+
+
+def _record_chunk(
+    plan: RecordingPlan, first: int, count: int
+) -> list[tuple[TensorDict, EpisodeMeta]]:
+    """Worker: record episodes ``first`` .. ``first + count - 1`` of ``plan`` as one
+    batched rollout (runs in a child process)."""
     torch.set_num_threads(1)
-    style = sample_style(
-        np.random.default_rng([plan.seed, index]),
-        mistake_rate=plan.mistake_rate,
-        trigger_sensor=plan.trigger_sensor,
-    )
-    env = make_gym_env(plan.simulator, **plan.env_kwargs)
-    operator = ScriptedScoopOperator(style, dt=env.unwrapped.dt)
-    episode, start, final = record_episode(
-        env, operator.act, seed=plan.episode_seed(index), phase=lambda: operator.phase
-    )
-    condition = getattr(env.unwrapped, "condition", None)
-    meta = EpisodeMeta(
-        rate_hz=1.0 / float(env.unwrapped.dt),
-        source="sim",
-        condition=getattr(condition, "name", str(plan.env_kwargs.get("condition", ""))),
-        condition_params=(
-            dataclasses.asdict(condition) if dataclasses.is_dataclass(condition) else {}
-        ),
-        soil=str(plan.env_kwargs.get("soil", "")),
-        operator={
-            "id": f"scripted-{plan.seed}-{index}",
-            "kind": "scripted",
-            "style": dataclasses.asdict(style),
-        },
-        fill_fraction=float(final.get("fill_fraction", math.nan)),
-        success=bool(final.get("success", False)),
-        seed=plan.episode_seed(index),
-        start={
-            k: float(start[k]) for k in ("start_distance_m", "approach_angle_rad") if k in start
-        },
-    )
+    env = make_rollout_env(plan.simulator, plan.env_kwargs, num_envs=count, info_keys=RECORDED_INFO)
+    dt = control_period_s(env)
+    operators = [
+        make_scripted_expert(
+            dt=dt,
+            rng=np.random.default_rng([plan.seed, index]),
+            mistake_rate=plan.mistake_rate,
+            trigger_sensor=plan.trigger_sensor,
+        )
+        for index in range(first, first + count)
+    ]
+    sensors = sensor_names(env)
+    policy = OperatorModule.for_env(operators, env)
+    run = rollout(env, policy, seed=plan.episode_seed(first))
+    recorded = []
+    for i, operator in enumerate(operators):
+        rows = run.episode(i)
+        start, final = _info(run, i, at=0), _info(run, i, at=-1)
+        condition = getattr(env.simulators[i].unwrapped, "condition", None)
+        style = getattr(operator, "style", None)
+        meta = EpisodeMeta(
+            rate_hz=1.0 / dt,
+            source="sim",
+            condition=getattr(condition, "name", str(plan.env_kwargs.get("condition", ""))),
+            condition_params=(
+                dataclasses.asdict(condition) if dataclasses.is_dataclass(condition) else {}
+            ),
+            soil=str(plan.env_kwargs.get("soil", "")),
+            operator={
+                "id": f"scripted-{plan.seed}-{first + i}",
+                "kind": "scripted",
+                "style": dataclasses.asdict(style) if dataclasses.is_dataclass(style) else {},
+            },
+            fill_fraction=float(final.get("fill_fraction", math.nan)),
+            success=bool(final.get("success", False)),
+            seed=run.seeds[i],
+            start={k: start[k] for k in ("start_distance_m", "approach_angle_rad") if k in start},
+        )
+        recorded.append((episode_from_rollout(rows, sensors=sensors, dt=dt), meta))
     env.close()
-    return episode, meta
+    return recorded
+
+
+def _chunks(indices: list[int], workers: int) -> list[tuple[int, int]]:
+    """(first, count) runs of consecutive ``indices`` (seeds ``s + i`` of one rollout),
+    enough to keep ``workers`` busy, at most ``MAX_EPISODES_PER_ROLLOUT`` each."""
+    size = min(MAX_EPISODES_PER_ROLLOUT, max(1, math.ceil(len(indices) / max(workers, 1))))
+    chunks: list[tuple[int, int]] = []
+    for index in indices:
+        if chunks and chunks[-1][0] + chunks[-1][1] == index and chunks[-1][1] < size:
+            chunks[-1] = (chunks[-1][0], chunks[-1][1] + 1)
+        else:
+            chunks.append((index, 1))
+    return chunks
 
 
 def _episodes(
     plan: RecordingPlan, indices: list[int], workers: int
 ) -> Iterator[tuple[TensorDict, EpisodeMeta]]:
-    if workers <= 1:
-        for i in indices:
-            yield _record_one(plan, i)
+    chunks = _chunks(indices, workers)
+    if workers <= 1 or len(chunks) == 1:
+        for first, count in chunks:
+            yield from _record_chunk(plan, first, count)
         return
-    with process_pool(workers) as pool:
-        yield from pool.map(_record_one, [plan] * len(indices), indices)
+    with process_pool(min(workers, len(chunks))) as pool:
+        for recorded in pool.map(_record_chunk, *zip(*[(plan, *c) for c in chunks], strict=True)):
+            yield from recorded
 
 
 def record_demonstrations(

@@ -2,8 +2,9 @@
 
 | module | what |
 |---|---|
-| ``episode`` | ``run_episode``: one episode of any controller, traces and frames |
-| ``evaluator`` | ``evaluate``: N seeded episodes per condition in worker processes, ``summarize`` |
+| ``episode`` | ``run_episode``: one rollout of any controller as traces and frames |
+| ``evaluator`` | ``evaluate``: N seeded episodes per condition as batched rollouts |
+|  | (``pilerl.sim.rollout``) in worker processes, ``summarize`` |
 | ``closed_loop`` | ``run_closed_loop``: evaluate, then results, plots and chosen videos |
 | ``metrics`` | ``wilson_interval`` |
 | ``control_signals`` | the paper's Fig. 3: controllers' controls vs a demonstration |
@@ -24,6 +25,7 @@ from .control_signals import (
 from .episode import Episode, run_episode
 from .evaluator import (
     ActorController,
+    ActorWeights,
     EvaluationPlan,
     ScriptedController,
     evaluate,
@@ -37,6 +39,7 @@ from .video import write_mp4
 __all__ = [
     "SCOOP_PHASES",
     "ActorController",
+    "ActorWeights",
     "ControlComparison",
     "Episode",
     "EvaluationPlan",

@@ -26,8 +26,8 @@ from tqdm import tqdm
 from pilerl.figures import legend_outside, plt, save_figure
 from pilerl.sim import make_gym_env
 
-from .episode import run_episode
-from .evaluator import EvaluationPlan, evaluate, summarize, write_results
+from .episode import make_episode_env, run_episode
+from .evaluator import EvaluationPlan, evaluate, resolve_controller, summarize, write_results
 from .video import annotate_frames, sensor_ranges, write_mp4
 
 log = logging.getLogger(__name__)
@@ -49,8 +49,7 @@ def run_closed_loop(
     """Evaluate ``controller`` on ``plan`` and write results, plots and videos to ``out_dir``.
 
     Args:
-        controller: ``ScriptedController`` or ``ActorController`` (anything with ``build(dt)``
-            and a ``name``).
+        controller: ``ScriptedController``, ``ActorController`` or ``ActorWeights``.
         plan: simulator, conditions, episodes per condition and base seed.
         workers: episode processes (default: one per core).
         videos: render the chosen rollouts to mp4.
@@ -71,6 +70,7 @@ def run_closed_loop(
             control_hz = 1.0 / float(probe.unwrapped.dt)
             probe.close()
         warn_if_other_control_rate(checkpoint, float(control_hz))
+    controller = resolve_controller(controller)  # a saved actor is read once, here
     records = evaluate(controller, plan, workers=workers, progress=progress)
     summary = summarize(records)
     # --- results first: a person can read them while the videos render
@@ -130,18 +130,19 @@ def render_rollout(
     camera: str = "side",
 ) -> Path:
     """Re-run the evaluated episode ``record`` with rendering and write it as an mp4."""
-    env = make_gym_env(
+    controller = resolve_controller(controller)
+    env = make_episode_env(
         plan.simulator,
-        **plan.env_kwargs,
-        condition=record["condition"],
-        render_mode="rgb_array",
-        render_size=render_size,
-        camera=camera,
+        {
+            **plan.env_kwargs,
+            "condition": record["condition"],
+            "render_mode": "rgb_array",
+            "render_size": render_size,
+            "camera": camera,
+        },
     )
-    operator = controller.build(float(env.unwrapped.dt))
-    operator.reset()
-    episode = run_episode(env, operator.act, seed=record["seed"], render=True)
-    ranges = sensor_ranges(env)
+    episode = run_episode(env, controller.policy(env), seed=record["seed"], render=True)
+    ranges = sensor_ranges(env.simulators[0])
     env.close()
     if abs(float(episode.final_info["fill_fraction"]) - record["fill_fraction"]) > 1e-6:
         log.warning("%s: the re-rendered episode differs from the evaluated one", path)

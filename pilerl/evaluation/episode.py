@@ -1,13 +1,27 @@
-"""Run one episode of any controller that acts from a dict of named sensor readings."""
+"""One episode of any controller as a person reads it: traces, outcome and frames.
+
+``run_episode`` runs the one rollout (``pilerl.sim.rollout``) on a single simulator and
+turns its rows into an ``Episode`` of NumPy arrays for plots, CSV traces, reports and
+videos.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
-import gymnasium as gym
 import numpy as np
-from tqdm import tqdm
+from tensordict import TensorDictBase
+
+from pilerl.operators import OperatorModule, operator_phases
+from pilerl.sim.rollout import (
+    Rollout,
+    control_period_s,
+    make_rollout_env,
+    rollout,
+    sensor_names,
+)
+from pilerl.sim.torchrl_env import SimulatorBatchEnv
 
 INFO_TRACES = (
     "fill_fraction",
@@ -16,6 +30,16 @@ INFO_TRACES = (
     "bucket_pitch_rad",
     "bucket_hinge_height_m",
     "spilled_kg",
+)
+# ``info`` entries an ``Episode`` keeps: the traces, the outcome and the start pose
+EPISODE_INFO = (
+    *INFO_TRACES,
+    "success",
+    "scoop_finished",
+    "tipped",
+    "elapsed_s",
+    "start_distance_m",
+    "approach_angle_rad",
 )
 
 
@@ -29,7 +53,8 @@ class Episode:
         actions: (T, action_dim) controls sent.
         rewards: per-step reward.
         traces: selected ``info`` values per step (``INFO_TRACES`` that the env reports).
-        final_info: the last step's ``info``; start_info: ``info`` at reset.
+        final_info: the last step's ``info``; start_info: ``info`` at reset (the
+            ``EPISODE_INFO`` entries the simulator reports).
         start_sensors: sensor readings at reset (before the first action).
         terminated, truncated: how the episode ended.
         phases: the controller's phase name at each step, if it reported one.
@@ -52,68 +77,78 @@ class Episode:
     frame_hz: float = 0.0
 
 
+def make_episode_env(
+    simulator: str, env_kwargs: Mapping[str, object], *, info_keys: tuple[str, ...] = ()
+) -> SimulatorBatchEnv:
+    """One simulator for ``run_episode``, carrying ``EPISODE_INFO`` (and ``info_keys``)."""
+    keys = tuple(dict.fromkeys((*EPISODE_INFO, *info_keys)))
+    return make_rollout_env(simulator, env_kwargs, num_envs=1, info_keys=keys)
+
+
 def run_episode(
-    env: gym.Env,
-    act: Callable[[dict[str, np.ndarray]], np.ndarray],
+    env: SimulatorBatchEnv,
+    policy: Callable[[TensorDictBase], TensorDictBase],
     *,
-    seed: int | None = None,
+    seed: int,
     render: bool = False,
     max_frame_hz: float = 10.0,
-    phase: Callable[[], str] | None = None,
     progress: str | None = None,
 ) -> Episode:
-    """Reset ``env`` with ``seed`` and step it with ``act(observation)`` until it ends.
+    """Roll ``policy`` out for one episode of ``env`` (from ``make_episode_env``) from ``seed``.
 
     Args:
-        env: a Gymnasium env with a ``Dict`` observation of named sensors.
-        act: controller; takes the observation dict, returns an action array.
-        render: also collect ``env.render()`` frames (env made with ``rgb_array``).
+        policy: a TensorDict module writing ``action`` (an ``OperatorModule`` of one
+            operator, or an actor).
+        render: also collect frames (env made with ``render_mode="rgb_array"``).
         max_frame_hz: render at most this many frames per simulated second (offscreen
             rendering costs more than simulating); ``Episode.frame_hz`` records the rate.
-        phase: if given, called before each step to name the controller's phase.
         progress: if given, show a progress bar with this label.
     """
-    obs, start_info = env.reset(seed=seed)
-    start_sensors = {name: float(np.asarray(v).reshape(-1)[0]) for name, v in obs.items()}
-    phases: list[str] = []
-    dt = float(env.unwrapped.dt)
-    sensors: dict[str, list[float]] = {name: [] for name in obs}
-    actions, rewards, times, frames = [], [], [], []
-    traces: dict[str, list[float]] = {k: [] for k in INFO_TRACES if k in start_info}
-    frame_stride = max(1, round(1.0 / (dt * max_frame_hz)))
-    bar = tqdm(desc=progress, unit="step", leave=False, disable=progress is None, mininterval=1.0)
-    if render:
-        frames.append(env.render())
-    while True:
-        action = np.asarray(act(obs), dtype=np.float32)
-        if phase is not None:
-            phases.append(phase())
-        obs, reward, terminated, truncated, info = env.step(action)
-        for name, value in obs.items():
-            sensors[name].append(float(np.asarray(value).reshape(-1)[0]))
-        for name in traces:
-            traces[name].append(float(info[name]))
-        actions.append(action)
-        rewards.append(float(reward))
-        times.append(len(times) * dt + dt)
-        if render and len(times) % frame_stride == 0:
-            frames.append(env.render())
-        bar.update()
-        if terminated or truncated:
-            break
-    bar.close()
-    return Episode(
-        time_s=np.asarray(times),
-        sensors={k: np.asarray(v) for k, v in sensors.items()},
-        actions=np.asarray(actions),
-        rewards=np.asarray(rewards),
-        traces={k: np.asarray(v) for k, v in traces.items()},
-        final_info=info,
-        start_info=start_info,
-        start_sensors=start_sensors,
-        terminated=bool(terminated),
-        truncated=bool(truncated),
-        phases=phases,
-        frames=frames,
-        frame_hz=1.0 / (dt * frame_stride),
+    dt = control_period_s(env)
+    stride = max(1, round(1.0 / (dt * max_frame_hz)))
+    run = rollout(env, policy, seed=seed, frame_stride=stride if render else 0, progress=progress)
+    phases = operator_phases(policy.operators[0]) if isinstance(policy, OperatorModule) else ()
+    return episode_of(
+        run, 0, dt=dt, sensors=sensor_names(env), phases=phases, frame_hz=1.0 / (dt * stride)
     )
+
+
+def episode_of(
+    run: Rollout,
+    index: int,
+    *,
+    dt: float,
+    sensors: list[str],
+    phases: tuple[str, ...] = (),
+    frame_hz: float = 0.0,
+) -> Episode:
+    """Episode ``index`` of a rollout as NumPy traces (phase names from ``phases``)."""
+    rows = run.episode(index)
+    after = rows.get("next")
+    info = {k: run.info(index, k) for k in EPISODE_INFO if k in run.info_keys}
+    start_info = _reported({k: float(v[0]) for k, v in info.items()})
+    final_info = _reported({k: float(v[-1]) for k, v in info.items()})
+    steps = len(rows)
+    phase_names = (
+        [phases[i] for i in rows.get("phase").tolist()] if phases and "phase" in rows else []
+    )
+    return Episode(
+        time_s=np.arange(steps) * dt + dt,
+        sensors={k: after.get(k)[:, 0].numpy().astype(np.float64) for k in sensors},
+        actions=rows.get("action").numpy(),
+        rewards=after.get("reward")[:, 0].numpy().astype(np.float64),
+        traces={k: info[k][1:] for k in INFO_TRACES if k in start_info},
+        final_info=final_info,
+        start_info=start_info,
+        start_sensors={k: float(rows.get(k)[0, 0]) for k in sensors},
+        terminated=bool(after.get("terminated")[-1, 0]),
+        truncated=bool(after.get("truncated")[-1, 0]),
+        phases=phase_names,
+        frames=run.frames[index] if run.frames else [],
+        frame_hz=frame_hz,
+    )
+
+
+def _reported(info: dict[str, float]) -> dict[str, float]:
+    """The entries a simulator reported (NaN stands for not reported)."""
+    return {k: v for k, v in info.items() if not np.isnan(v)}

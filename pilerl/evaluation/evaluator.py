@@ -1,13 +1,21 @@
 """Closed-loop evaluation: run a controller for N seeded episodes per condition.
 
 Episode i of every condition starts from the same seeded pose (start distance, approach
-angle), so controllers and conditions are compared on paired starts. Episodes run in
-worker processes (one thread each); the records come back in episode order, so the result
-does not depend on the number of workers.
+angle), so controllers and conditions are compared on paired starts. Episodes run as
+rollouts (``pilerl.sim.rollout``): the episodes of a condition are cut into chunks, each
+one batched rollout (episode ``i`` seeded ``seed * 100_000 + i``), and the chunks run in
+worker processes (one thread each). An episode's result depends neither on its chunk nor
+on its worker (operators act per episode, actors row by row), and the records come back
+in episode order, so the result does not depend on the number of workers.
+
+A controller is the scripted operator (``ScriptedController``), a saved actor
+(``ActorController``) or an actor in memory (``ActorWeights.of(actor)``, what fine-tuning
+evaluates): saved and in-memory actors alike reach the workers as their weights.
 """
 
 from __future__ import annotations
 
+import io
 import math
 import os
 import statistics
@@ -17,15 +25,38 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tensordict import TensorDict
+from tensordict.nn import TensorDictModule, TensorDictModuleBase
 from tqdm import tqdm
 
 from pilerl.io import atomic_path, write_text_atomic
-from pilerl.operators import OperatorStyle, ScriptedScoopOperator
+from pilerl.operators import OperatorModule, OperatorStyle, make_scripted_expert
 from pilerl.runtime import process_pool
-from pilerl.sim import make_gym_env
+from pilerl.sim.rollout import (
+    Rollout,
+    RowByRow,
+    control_names,
+    control_period_s,
+    make_rollout_env,
+    rollout,
+)
+from pilerl.sim.torchrl_env import SimulatorBatchEnv
 
 from .metrics import wilson_interval
+
+# ``info`` entries an episode record is made of (NaN where a simulator reports none)
+EVALUATION_INFO = (
+    "start_distance_m",
+    "approach_angle_rad",
+    "fill_fraction",
+    "success",
+    "scoop_finished",
+    "elapsed_s",
+    "wheel_slip_m_s",
+    "cutting_depth_m",
+    "spilled_kg",
+    "tipped",
+)
+MAX_EPISODES_PER_ROLLOUT = 8  # TorchRL's per-step cost is paid once for a chunk's episodes
 
 
 @dataclass(frozen=True)
@@ -35,34 +66,75 @@ class ScriptedController:
     style: OperatorStyle = field(default_factory=OperatorStyle)
     name: str = "scripted"
 
-    def build(self, dt: float):
-        return ScriptedScoopOperator(self.style, dt=dt)
+    def policy(self, env: SimulatorBatchEnv) -> TensorDictModuleBase:
+        """One operator per simulator of ``env``."""
+        dt = control_period_s(env)
+        operators = [make_scripted_expert(dt=dt, style=self.style) for _ in env.simulators]
+        return OperatorModule.for_env(operators, env)
+
+
+@dataclass(frozen=True)
+class ActorWeights:
+    """An actor as plain data, acting deterministically: what evaluation workers receive.
+
+    Attributes:
+        config: the actor's ``ActorConfig`` as JSON.
+        weights: its ``SensorPolicy``'s ``state_dict``, ``torch.save``d.
+        name: the controller's name in the records.
+    """
+
+    config: dict
+    weights: bytes
+    name: str = "actor"
+
+    @classmethod
+    def of(cls, actor: torch.nn.Module, *, name: str = "actor") -> ActorWeights:
+        """A copy of the weights of ``actor`` (from ``make_actor`` / ``load_actor``, or its
+        ``SensorPolicy``); later changes to ``actor`` do not reach the copy."""
+        from pilerl.policies import actor_policy
+
+        policy = actor_policy(actor)
+        buffer = io.BytesIO()
+        torch.save({k: v.detach().cpu().clone() for k, v in policy.state_dict().items()}, buffer)
+        return cls(config=policy.config.to_json(), weights=buffer.getvalue(), name=name)
+
+    def build(self) -> TensorDictModule:
+        """The actor, rebuilt in eval mode (drawing nothing from torch's generator)."""
+        from pilerl.policies.actors import policy_actor
+        from pilerl.policies.checkpoint import rebuild_policy
+        from pilerl.policies.config import ActorConfig
+
+        state_dict = torch.load(io.BytesIO(self.weights), weights_only=True)
+        where = Path(f"<actor {self.name!r} in memory>")
+        policy = rebuild_policy(where, ActorConfig.from_json(self.config), state_dict, "weights")
+        return policy_actor(policy).eval()
+
+    def policy(self, env: SimulatorBatchEnv) -> TensorDictModuleBase:
+        """The actor, acting on each simulator of ``env`` alone (``RowByRow``)."""
+        return RowByRow(self.build())
 
 
 @dataclass(frozen=True)
 class ActorController:
-    """A saved actor (``best.pt``) acting deterministically from the observation."""
+    """A saved actor (``best.pt``), read when an evaluation starts."""
 
     checkpoint: str
     name: str = "actor"
 
-    def build(self, dt: float):
-        return _ActorOperator(self.checkpoint)
-
-
-class _ActorOperator:
-    def __init__(self, checkpoint: str) -> None:
+    def weights(self) -> ActorWeights:
         from pilerl.policies import load_actor
 
-        self.actor = load_actor(checkpoint)
+        return ActorWeights.of(load_actor(self.checkpoint), name=self.name)
 
-    def reset(self) -> None:
-        pass
 
-    def act(self, obs: dict) -> np.ndarray:
-        with torch.no_grad():
-            td = TensorDict({k: torch.as_tensor(v) for k, v in obs.items()}, [])
-            return self.actor(td)["action"].numpy()
+def resolve_controller(controller):
+    """What workers receive: a ``ScriptedController`` or ``ActorWeights`` (a saved actor is
+    read now, an actor in memory copied now)."""
+    if isinstance(controller, ActorController):
+        return controller.weights()
+    if isinstance(controller, torch.nn.Module):
+        return ActorWeights.of(controller)
+    return controller
 
 
 @dataclass(frozen=True)
@@ -87,98 +159,118 @@ class EvaluationPlan:
         if self.episodes < 1 or not self.conditions:
             raise ValueError(f"EvaluationPlan: need >= 1 episode and >= 1 condition, got {self}")
 
-
-# One env per (plan, condition) and one operator per controller, kept for the life of a
-# worker process: building them costs ~0.15 s and a checkpoint load, against ~0.5 s for an
-# episode. ``reset(seed=...)`` restores every state an episode depends on (tested: results do
-# not depend on which worker ran which episodes before).
-_ENVS: dict[tuple, object] = {}
-_OPERATORS: dict[tuple, object] = {}
+    def episode_seed(self, index: int) -> int:
+        return self.seed * 100_000 + index
 
 
-def _cached_env(plan: EvaluationPlan, condition: str):
-    key = (plan.simulator, repr(sorted(plan.env_kwargs.items())), condition)
+# One batched env per (plan, condition, chunk size), kept for the life of the process:
+# building a simulator costs ~0.15 s against ~0.5 s for an episode. ``evaluate`` builds them
+# before forking its workers, which inherit them. ``reset(seed=...)`` restores every state
+# an episode depends on (tested: results do not depend on which episodes ran before).
+_ENVS: dict[tuple, SimulatorBatchEnv] = {}
+
+
+def _cached_env(plan: EvaluationPlan, condition: str, num_envs: int) -> SimulatorBatchEnv:
+    key = (plan.simulator, repr(sorted(plan.env_kwargs.items())), condition, num_envs)
     if key not in _ENVS:
-        _ENVS[key] = make_gym_env(plan.simulator, **plan.env_kwargs, condition=condition)
+        _ENVS[key] = make_rollout_env(
+            plan.simulator,
+            {**plan.env_kwargs, "condition": condition},
+            num_envs=num_envs,
+            info_keys=EVALUATION_INFO,
+        )
     return _ENVS[key]
 
 
-def _cached_operator(controller, dt: float):
-    # a checkpoint rewritten in place (a fine-tuning run re-saving its actor) is a new key
-    checkpoint = getattr(controller, "checkpoint", None)
-    stamp = None
-    if checkpoint is not None:
-        stat = os.stat(checkpoint)
-        stamp = (stat.st_mtime_ns, stat.st_size, stat.st_ino)
-    key = (repr(controller), dt, stamp)
-    if key not in _OPERATORS:
-        _OPERATORS[key] = controller.build(dt)
-    return _OPERATORS[key]
-
-
-def build_envs(plan: EvaluationPlan) -> None:
-    """Build (and keep) each condition's env of ``plan`` in this process: a bad condition
-    or simulator argument fails here, before any work, and forked workers inherit them."""
-    for condition in plan.conditions:
-        _cached_env(plan, condition)
+def build_envs(plan: EvaluationPlan, *, workers: int = 1) -> None:
+    """Build (and keep) the envs that evaluating ``plan`` on ``workers`` processes uses: a
+    bad condition or simulator argument fails here, before any work, and forked workers
+    inherit them."""
+    for condition, _, count in _chunks(plan, workers):
+        _cached_env(plan, condition, count)
 
 
 def clear_caches() -> None:
-    """Close and forget the cached envs and operators of this process."""
+    """Close and forget the cached envs of this process."""
     for env in _ENVS.values():
         env.close()
     _ENVS.clear()
-    _OPERATORS.clear()
 
 
-def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -> dict:
+def _chunks(plan: EvaluationPlan, workers: int) -> list[tuple[str, int, int]]:
+    """(condition, first episode, episodes) of each rollout: enough chunks to keep
+    ``workers`` busy, at most ``MAX_EPISODES_PER_ROLLOUT`` episodes each."""
+    per_condition = max(1, math.ceil(workers / len(plan.conditions)))
+    size = min(MAX_EPISODES_PER_ROLLOUT, max(1, math.ceil(plan.episodes / per_condition)))
+    return [
+        (condition, first, min(size, plan.episodes - first))
+        for condition in plan.conditions
+        for first in range(0, plan.episodes, size)
+    ]
+
+
+def _run_chunk(controller, plan: EvaluationPlan, condition: str, first: int, count: int):
+    """Records of episodes ``first`` .. ``first + count - 1`` of ``condition``."""
     torch.set_num_threads(1)
-    env = _cached_env(plan, condition)
-    operator = _cached_operator(controller, float(env.unwrapped.dt))
-    operator.reset()
-    seed = plan.seed * 100_000 + index
-    obs, start = env.reset(seed=seed)
-    boom = _control_index(env, "boom")
-    total, max_slip, time_to_finish, max_depth = 0.0, 0.0, math.nan, 0.0
-    first_lift_s, penetration_s = math.nan, math.nan
-    while True:
-        action = operator.act(obs)
-        obs, reward, terminated, truncated, info = env.step(action)
-        total += float(reward)
-        max_slip = max(max_slip, float(info.get("wheel_slip_m_s", 0.0)))
-        max_depth = max(max_depth, float(info.get("cutting_depth_m", 0.0)))
-        now = float(info["elapsed_s"])
-        if boom is not None and math.isnan(first_lift_s) and action[boom] > LIFT_COMMAND:
-            first_lift_s = now
-        if math.isnan(penetration_s) and max_depth >= PENETRATION_M:
-            penetration_s = now
-        if terminated or truncated:
-            if info.get("scoop_finished"):
-                time_to_finish = now
-            break
+    env = _cached_env(plan, condition, count)
+    run = rollout(env, controller.policy(env), seed=plan.episode_seed(first))
+    names = control_names(env)
+    boom = names.index("boom") if "boom" in names else None
+    return [
+        episode_record(
+            run, i, controller=controller.name, condition=condition, index=first + i, boom=boom
+        )
+        for i in range(count)
+    ]
+
+
+def episode_record(
+    run: Rollout, episode: int, *, controller: str, condition: str, index: int, boom: int | None
+) -> dict:
+    """One row of ``episodes.csv``: episode ``episode`` of ``run`` (evaluation index
+    ``index``), from its actions and the ``EVALUATION_INFO`` the simulator reported."""
+
+    def final(key: str, default: float = math.nan) -> float:
+        value = float(run.info(episode, key)[-1])
+        return default if math.isnan(value) else value
+
+    def trace(key: str) -> np.ndarray:  # after each step, 0 where not reported
+        return np.nan_to_num(run.info(episode, key)[1:], nan=0.0)
+
+    elapsed = run.info(episode, "elapsed_s")[1:]
+    depth = trace("cutting_depth_m")
+    actions = run.episode(episode).get("action").numpy()
+    lifted = np.flatnonzero(actions[:, boom] > LIFT_COMMAND) if boom is not None else []
+    dug_in = np.flatnonzero(depth >= PENETRATION_M)
+    first_lift_s = float(elapsed[lifted[0]]) if len(lifted) else math.nan
+    penetration_s = float(elapsed[dug_in[0]]) if len(dug_in) else math.nan
+    success = bool(final("success", 0.0))
+    tipped = bool(final("tipped", 0.0))
+    finished = bool(final("scoop_finished", 0.0))
+    rewards = run.episode(episode).get(("next", "reward"))[:, 0].numpy().astype(np.float64)
     return {
-        "controller": controller.name,
+        "controller": controller,
         "condition": condition,
         "episode": index,
-        "seed": seed,
-        "start_distance_m": float(start.get("start_distance_m", math.nan)),
-        "approach_angle_rad": float(start.get("approach_angle_rad", math.nan)),
-        "fill_fraction": float(info["fill_fraction"]),
-        "success": bool(info["success"]),
-        "scoop_finished": bool(info.get("scoop_finished", False)),
-        "elapsed_s": float(info["elapsed_s"]),
-        "time_to_finish_s": time_to_finish,
-        "max_wheel_slip_m_s": max_slip,
-        "spilled_kg": float(info.get("spilled_kg", 0.0)),
-        "return": total,
-        "max_cutting_depth_m": max_depth,
+        "seed": run.seeds[episode],
+        "start_distance_m": float(run.info(episode, "start_distance_m")[0]),
+        "approach_angle_rad": float(run.info(episode, "approach_angle_rad")[0]),
+        "fill_fraction": final("fill_fraction"),
+        "success": success,
+        "scoop_finished": finished,
+        "elapsed_s": final("elapsed_s"),
+        "time_to_finish_s": final("elapsed_s") if finished else math.nan,
+        "max_wheel_slip_m_s": max(0.0, float(trace("wheel_slip_m_s").max())),
+        "spilled_kg": final("spilled_kg", 0.0),
+        "return": float(np.cumsum(rewards)[-1]),  # summed step by step, as the env reported
+        "max_cutting_depth_m": max(0.0, float(depth.max())),
         "first_lift_s": first_lift_s,
         "penetration_s": penetration_s,
-        "tipped": bool(info.get("tipped", False)),
+        "tipped": tipped,
         "failure_mode": failure_mode(
-            success=bool(info["success"]),
-            tipped=bool(info.get("tipped", False)),
-            finished=bool(info.get("scoop_finished", False)),
+            success=success,
+            tipped=tipped,
+            finished=finished,
             first_lift_s=first_lift_s,
             penetration_s=penetration_s,
         ),
@@ -215,33 +307,40 @@ def failure_mode(
     return "underfilled" if finished else "unfinished"
 
 
-def _control_index(env, name: str) -> int | None:
-    names = list(getattr(env.unwrapped, "control_names", ()))
-    return names.index(name) if name in names else None
-
-
 def evaluate(
     controller, plan: EvaluationPlan, *, workers: int | None = None, progress: bool = True
 ) -> list[dict]:
-    """One record per episode, ordered by condition then episode."""
-    build_envs(plan)
-    jobs = [(c, i) for c in plan.conditions for i in range(plan.episodes)]
-    workers = workers if workers is not None else min(os.cpu_count() or 1, len(jobs))
+    """One record per episode, ordered by condition then episode.
+
+    ``controller``: ``ScriptedController``, ``ActorController`` (a saved actor),
+    ``ActorWeights`` or an actor module in memory (its weights are copied now and sent to
+    the workers).
+    """
+    controller = resolve_controller(controller)
+    workers = (
+        workers
+        if workers is not None
+        else min(os.cpu_count() or 1, plan.episodes * len(plan.conditions))
+    )
+    chunks = _chunks(plan, workers)
+    build_envs(plan, workers=workers)
     bar = tqdm(
-        total=len(jobs), desc=f"evaluating {controller.name}", unit="episode", disable=not progress
+        total=plan.episodes * len(plan.conditions),
+        desc=f"evaluating {controller.name}",
+        unit="episode",
+        disable=not progress,
     )
     records = []
-    if workers <= 1:
-        for condition, index in jobs:
-            records.append(_run_episode(controller, plan, condition, index))
-            bar.update()
+    if workers <= 1 or len(chunks) == 1:
+        for condition, first, count in chunks:
+            records.extend(_run_chunk(controller, plan, condition, first, count))
+            bar.update(count)
     else:
-        with process_pool(workers) as pool:
-            for record in pool.map(
-                _run_episode, *zip(*[(controller, plan, c, i) for c, i in jobs], strict=True)
-            ):
-                records.append(record)
-                bar.update()
+        jobs = [(controller, plan, *chunk) for chunk in chunks]
+        with process_pool(min(workers, len(chunks))) as pool:
+            for chunk_records in pool.map(_run_chunk, *zip(*jobs, strict=True)):
+                records.extend(chunk_records)
+                bar.update(len(chunk_records))
     bar.close()
     return records
 
@@ -321,12 +420,15 @@ __all__ = [
     "FAILURE_MODES",
     "WINTER_POOL",
     "ActorController",
+    "ActorWeights",
     "EvaluationPlan",
     "ScriptedController",
     "build_envs",
     "clear_caches",
+    "episode_record",
     "evaluate",
     "failure_mode",
+    "resolve_controller",
     "success_metrics",
     "summarize",
     "summarize_rows",

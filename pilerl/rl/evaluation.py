@@ -2,8 +2,9 @@
 
 A group pools several conditions into one success rate with a Wilson interval ("winter"
 = ``winter_a`` .. ``winter_d`` unless configured otherwise, the way the paper's winter
-tests mixed days). Episodes come from ``pilerl.evaluation.evaluator.evaluate`` on a saved
-actor, so fine-tuned and cloned actors are compared on the same seeded starts.
+tests mixed days). Episodes come from ``pilerl.evaluation.evaluator.evaluate`` on the actor
+in memory (or a saved one), so fine-tuned and cloned actors are compared on the same seeded
+starts.
 """
 
 from __future__ import annotations
@@ -11,8 +12,11 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+from torch import nn
+
 from pilerl.evaluation.evaluator import (
     ActorController,
+    ActorWeights,
     EvaluationPlan,
     evaluate,
     summarize_rows,
@@ -47,7 +51,7 @@ def pool_groups(
 
 
 def evaluate_groups(
-    checkpoint: str | Path,
+    actor: nn.Module | str | Path,
     groups: Mapping[str, Sequence[str]],
     *,
     simulator: str,
@@ -57,11 +61,8 @@ def evaluate_groups(
     workers: int = 1,
     confidence: float = 0.95,
 ) -> tuple[dict[str, dict], list[dict], EvaluationPlan]:
-    """(pooled success per group, one record per episode, the plan) of a saved actor.
-
-    Fine-tuning rewrites the same files (``evaluated.pt``, ``best.pt``); the evaluator
-    reloads a checkpoint whenever its file changed.
-    """
+    """(pooled success per group, one record per episode, the plan) of ``actor``: an actor
+    in memory (its weights as they are now go to the evaluation workers) or a saved one."""
     conditions = tuple(dict.fromkeys(c for members in groups.values() for c in members))
     plan = EvaluationPlan(
         simulator=simulator,
@@ -70,7 +71,10 @@ def evaluate_groups(
         episodes=episodes,
         seed=seed,
     )
-    records = evaluate(ActorController(str(checkpoint)), plan, workers=workers, progress=False)
+    controller = (
+        ActorController(str(actor)) if isinstance(actor, str | Path) else ActorWeights.of(actor)
+    )
+    records = evaluate(controller, plan, workers=workers, progress=False)
     return pool_groups(records, groups, confidence=confidence), records, plan
 
 

@@ -51,7 +51,7 @@ from tqdm import tqdm
 
 from pilerl.data import EpisodeStore
 from pilerl.evaluation.closed_loop import render_rollout
-from pilerl.evaluation.evaluator import ActorController, EvaluationPlan
+from pilerl.evaluation.evaluator import ActorWeights, EvaluationPlan
 from pilerl.io import write_text_atomic
 from pilerl.loggers import make_logger
 from pilerl.policies import CheckpointError, actor_policy, load_actor, save_actor
@@ -69,7 +69,6 @@ log = logging.getLogger(__name__)
 RUN_CHECKPOINT = "last.ckpt"
 BEST_ACTOR = "best.pt"
 FINAL_ACTOR = "final.pt"
-EVAL_ACTOR = "evaluated.pt"  # scratch file the evaluator loads
 RESULTS_FILE = "results.json"
 EVALUATIONS_FILE = "evaluations.json"
 CURVE_FILE = "success_curve.png"
@@ -79,7 +78,6 @@ RUN_FILES = [
     RUN_CHECKPOINT,
     BEST_ACTOR,
     FINAL_ACTOR,
-    EVAL_ACTOR,
     RESULTS_FILE,
     EVALUATIONS_FILE,
     CURVE_FILE,
@@ -207,13 +205,14 @@ class _Run:
 
     # ------------------------------------------------------------------ evaluation
     def _evaluate(
-        self, checkpoint: Path | str, *, episodes: int, seed: int
+        self, actor, *, episodes: int, seed: int
     ) -> tuple[dict, dict, list[dict], EvaluationPlan]:
-        """(success per group, success per condition, episode records, plan) of an actor."""
+        """(success per group, success per condition, episode records, plan) of an actor
+        (in memory, or a saved one's path)."""
         evaluation = self.config.evaluation
         started = time.perf_counter()
         pooled, records, plan = evaluate_groups(
-            checkpoint,
+            actor,
             evaluation.groups,
             simulator=self.config.env.simulator,
             env_kwargs=self.env_kwargs,
@@ -245,9 +244,8 @@ class _Run:
         """Periodic evaluation of the current actor; keeps ``best.pt``."""
         evaluation = self.config.evaluation
         started = time.perf_counter()
-        scratch = save_actor(self.run_dir / EVAL_ACTOR, self.policy)
         groups, _, records, plan = self._evaluate(
-            scratch, episodes=evaluation.episodes, seed=evaluation.seed
+            self.policy, episodes=evaluation.episodes, seed=evaluation.seed
         )
         self.periodic_eval_s = time.perf_counter() - started
         if not self.final_eval_s and evaluation.episodes:  # resumed: scale the periodic one
@@ -264,20 +262,19 @@ class _Run:
         for group, result in groups.items():
             self._log(f"eval_{group}_success_rate", result["success_rate"])
         if evaluation.video:
-            self._record_videos(frames, scratch, records, plan)
+            self._record_videos(frames, records, plan)
         self._write_curve()
         log.info("frames %d: %s", frames, _rates(groups))
 
-    def _record_videos(
-        self, frames: int, checkpoint: Path, records: list[dict], plan: EvaluationPlan
-    ) -> None:
+    def _record_videos(self, frames: int, records: list[dict], plan: EvaluationPlan) -> None:
         """Episode 0 of each group's filmed condition, as just evaluated, to an mp4."""
         evaluation = self.config.evaluation
+        actor = ActorWeights.of(self.policy)
         for group, conditions in evaluation.groups.items():
             condition = evaluation.video_conditions.get(group, conditions[0])
             record = next(r for r in records if r["condition"] == condition)
             render_rollout(
-                ActorController(str(checkpoint)),
+                actor,
                 plan,
                 record,
                 self.run_dir / "videos" / f"{frames:09d}_{group}_{condition}.mp4",
@@ -471,9 +468,9 @@ class _Run:
     # ------------------------------------------------------------------ results
     def results(self, finished: bool) -> dict:
         evaluation = self.config.evaluation
-        final = save_actor(self.run_dir / FINAL_ACTOR, self.policy)
+        save_actor(self.run_dir / FINAL_ACTOR, self.policy)
         after_final, final_conditions, *_ = self._evaluate(
-            final, episodes=evaluation.final_episodes, seed=evaluation.final_seed
+            self.policy, episodes=evaluation.final_episodes, seed=evaluation.final_seed
         )
         if evaluation.every_frames:
             after_best, best_conditions, *_ = self._evaluate(
@@ -484,7 +481,6 @@ class _Run:
         else:  # no periodic evaluation to choose by: the last actor is the best one known
             save_actor(self.run_dir / BEST_ACTOR, self.policy)
             after_best, best_conditions = after_final, final_conditions
-        (self.run_dir / EVAL_ACTOR).unlink(missing_ok=True)
         state = self.state
         metrics = {
             "controller": self.policy.config.controller,

@@ -1,0 +1,154 @@
+"""Closed-loop evaluation and recording speed: episodes per second, against a hand loop.
+
+In one run, with one intra-op thread per process, on the same seeded episodes:
+
+- ``hand loop``: the baseline, a plain Gymnasium loop (``operator.act`` then ``env.step``
+  until the episode ends), what the evaluator ran before the one rollout.
+- ``evaluate scripted``: ``pilerl.evaluation.evaluate`` of the scripted operator, on 1
+  and on 2 worker processes.
+- ``evaluate saved actor``: a saved NNetV2 (``ActorController``), 1 and 2 workers.
+- ``record``: ``record_demonstrations`` of the same number of episodes, 1 and 2 workers.
+
+Each row is the best of ``--repeats`` runs (the machine is shared); the ratio is the
+row's episodes/s over the hand loop's. Only the public calls are timed, so the same
+script measures any version of pilerl (``PYTHONPATH`` pointing at another checkout).
+
+    python benchmarks/evaluation_speed.py
+    python benchmarks/evaluation_speed.py --episodes 8 --repeats 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import torch  # noqa: E402
+
+from pilerl.data import EpisodeStore, RecordingPlan, record_demonstrations  # noqa: E402
+from pilerl.evaluation.evaluator import (  # noqa: E402
+    ActorController,
+    EvaluationPlan,
+    ScriptedController,
+    evaluate,
+)
+from pilerl.operators import OperatorStyle, ScriptedScoopOperator  # noqa: E402
+from pilerl.policies import make_actor, save_actor  # noqa: E402
+from pilerl.sim import make_gym_env  # noqa: E402
+
+CONDITIONS = ("summer", "winter_c")
+SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
+STATS = {
+    "sensors": {name: {"mean": 0.0, "std": 1.0} for name in SENSORS},
+    "action": {"mean": [0.0, 0.0, 0.0], "std": [1.0, 1.0, 1.0]},
+}
+
+
+def hand_loop(plan: EvaluationPlan) -> None:
+    """The scripted operator in a plain Gymnasium loop, episode after episode."""
+    for condition in plan.conditions:
+        env = make_gym_env(plan.simulator, **plan.env_kwargs, condition=condition)
+        operator = ScriptedScoopOperator(OperatorStyle(), dt=float(env.unwrapped.dt))
+        for index in range(plan.episodes):
+            operator.reset()
+            obs, _ = env.reset(seed=plan.seed * 100_000 + index)
+            while True:
+                obs, _, terminated, truncated, _ = env.step(operator.act(obs))
+                if terminated or truncated:
+                    break
+        env.close()
+
+
+def saved_actor(root: Path) -> str:
+    """A small NNetV2 that drives into the pile (mostly throttle, a little of the sensors)."""
+    torch.manual_seed(0)
+    actor = make_actor("nnetv2", sensors=SENSORS, stats=STATS)
+    output = actor.module.controller.output
+    with torch.no_grad():
+        output.weight.mul_(0.1)
+        output.bias.copy_(torch.tensor([0.0, 0.0, 2.0]))
+    return str(save_actor(root / "actor.pt", actor))
+
+
+def record(root: Path, episodes: int, workers: int) -> None:
+    env = make_gym_env("pile_loader").unwrapped
+    store = EpisodeStore.create(
+        Path(tempfile.mkdtemp(dir=root)) / "demos",
+        sensors=env.sensor_units,
+        controls=list(env.control_names),
+    )
+    plan = RecordingPlan("pile_loader", {"condition": "summer"}, n_episodes=episodes, seed=3)
+    record_demonstrations(store, plan, workers=workers, progress=False)
+
+
+def best_of(repeats: int, run) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        run()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--episodes", type=int, default=4, help="episodes per condition")
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    plan = EvaluationPlan("pile_loader", {}, CONDITIONS, episodes=args.episodes, seed=1)
+    episodes = args.episodes * len(CONDITIONS)
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        actor = ActorController(saved_actor(root))
+        hand_loop(plan)  # warm up: imports, compiled models
+        rows = [("hand loop (baseline)", best_of(args.repeats, lambda: hand_loop(plan)))]
+        for workers in (1, 2):
+            rows.append(
+                (
+                    f"evaluate scripted, {workers} worker(s)",
+                    best_of(
+                        args.repeats,
+                        lambda w=workers: evaluate(
+                            ScriptedController(), plan, workers=w, progress=False
+                        ),
+                    ),
+                )
+            )
+        for workers in (1, 2):
+            rows.append(
+                (
+                    f"evaluate saved actor, {workers} worker(s)",
+                    best_of(
+                        args.repeats,
+                        lambda w=workers: evaluate(actor, plan, workers=w, progress=False),
+                    ),
+                )
+            )
+        for workers in (1, 2):
+            rows.append(
+                (
+                    f"record, {workers} worker(s)",
+                    best_of(args.repeats, lambda w=workers: record(root, episodes, w)),
+                )
+            )
+    baseline = rows[0][1]
+    print(
+        f"{episodes} episodes ({args.episodes} per condition of {CONDITIONS}), best of "
+        f"{args.repeats}"
+    )
+    print(f"| {'case':<36} | {'seconds':>8} | {'episodes/s':>10} | {'vs hand loop':>12} |")
+    print(f"|{'-' * 38}|{'-' * 10}|{'-' * 12}|{'-' * 14}|")
+    for name, seconds in rows:
+        print(
+            f"| {name:<36} | {seconds:8.2f} | {episodes / seconds:10.2f} | "
+            f"{baseline / seconds:11.2f}x |"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,216 @@
+"""The one rollout: batched seeds, operators as TensorDict modules, recorded rollouts as
+schema episodes, actors sent to evaluation workers as weights."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModuleBase
+
+from pilerl.data import EpisodeStore, RecordingPlan, record_demonstrations
+from pilerl.data.recorder import (
+    EXECUTED_KEY,
+    RECORDED_INFO,
+    episode_from_rollout,
+    record_episode,
+)
+from pilerl.data.schema import validate_episode
+from pilerl.evaluation.evaluator import (
+    ActorController,
+    ActorWeights,
+    EvaluationPlan,
+    evaluate,
+)
+from pilerl.operators import PHASES, OperatorModule, make_scripted_expert
+from pilerl.policies import make_actor, save_actor
+from pilerl.sim.rollout import (
+    RowByRow,
+    control_period_s,
+    make_rollout_env,
+    rollout,
+    sensor_names,
+)
+
+ENV = {"condition": "summer", "control_hz": 20.0}
+S = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
+STATS = {
+    "sensors": {name: {"mean": 0.0, "std": 1.0} for name in S},
+    "action": {"mean": [0.0, 0.0, 0.0], "std": [1.0, 1.0, 1.0]},
+}
+
+
+def scripted(env, n: int, first: int = 0) -> OperatorModule:
+    """``n`` operators, each with the style drawn for its episode index."""
+    dt = control_period_s(env)
+    rngs = [np.random.default_rng([1, first + i]) for i in range(n)]
+    return OperatorModule.for_env([make_scripted_expert(dt=dt, rng=rng) for rng in rngs], env)
+
+
+def test_a_batched_rollout_is_the_single_rollouts_of_consecutive_seeds():
+    batched_env = make_rollout_env("pile_loader", ENV, num_envs=3, info_keys=RECORDED_INFO)
+    batch = rollout(batched_env, scripted(batched_env, 3), seed=40)
+    assert batch.seeds == [40, 41, 42]
+    assert len(set(batch.lengths)) > 1  # episodes of different lengths share the batch
+    single_env = make_rollout_env("pile_loader", ENV, num_envs=1, info_keys=RECORDED_INFO)
+    for i in range(3):
+        alone = rollout(single_env, scripted(single_env, 1, first=i), seed=40 + i)
+        mine, theirs = batch.episode(i), alone.episode(0)
+        assert batch.lengths[i] == alone.lengths[0]
+        for key in mine.keys(include_nested=True, leaves_only=True):
+            assert torch.equal(mine.get(key), theirs.get(key)), key
+    # each episode starts from its own seeded pose; ended rows repeat the episode's last row
+    starts = [batch.info(i, "start_distance_m")[0] for i in range(3)]
+    assert len(set(starts)) == 3
+    shortest = int(np.argmin(batch.lengths))
+    tail = batch.data[shortest, batch.lengths[shortest] - 1 :]
+    assert (tail.get(("next", "done")) == True).all()  # noqa: E712
+    assert torch.equal(tail.get("action")[-1], tail.get("action")[0])
+
+
+def test_a_recorded_rollout_is_the_schema_episode_the_recorder_stores(tmp_path):
+    env = make_rollout_env("pile_loader", ENV, num_envs=2, info_keys=RECORDED_INFO)
+    run = rollout(env, scripted(env, 2), seed=100_000)  # RecordingPlan(seed=1): 100_000 + i
+    sim = env.simulators[0].unwrapped
+    store = EpisodeStore.create(tmp_path, sensors=sim.sensor_units, controls=sim.control_names)
+    plan = RecordingPlan("pile_loader", ENV, n_episodes=2, seed=1)
+    record_demonstrations(store, plan, workers=1, progress=False)
+    for i in range(2):
+        rows = run.episode(i)
+        episode = episode_from_rollout(rows, sensors=sensor_names(env), dt=0.05)
+        validate_episode(episode, sensor_names(env), action_dim=3)
+        assert EXECUTED_KEY not in episode  # the scripted operator is its own label
+        # the rollout's rows are the episode: readings before and after each action
+        assert torch.equal(episode["boom_angle"][1:], episode["next", "boom_angle"][:-1])
+        assert torch.equal(episode["action"], rows.get("action"))
+        assert episode["next", "done"].sum() == 1 and bool(episode["next", "done"][-1])
+        assert episode["time_s"][1] == pytest.approx(0.05)
+        stored = store.load(i).to_tensordict()
+        assert set(stored.keys(True, True)) == set(episode.keys(True, True))
+        for key in episode.keys(include_nested=True, leaves_only=True):
+            if key != "episode":  # the store numbers its episodes
+                assert torch.equal(stored[key], episode[key]), key
+        assert store.episodes[i].seed == run.seeds[i]
+
+
+def test_the_operator_module_labels_phases_and_records_labels_apart_from_commands():
+    env = make_rollout_env("pile_loader", ENV, info_keys=RECORDED_INFO)
+    nominal = make_scripted_expert(dt=control_period_s(env))
+    rows = rollout(env, OperatorModule.for_env([nominal], env), seed=3).episode(0)
+    phases = rows.get("phase").tolist()
+    assert phases[0] == PHASES.index("approach") and len(set(phases)) > 1
+    assert phases == sorted(phases)  # approach -> fill -> finish, never back
+    replay = make_scripted_expert(dt=control_period_s(env))  # the same operator, by hand
+    for t, phase in enumerate(phases):
+        command = replay.act({name: rows.get(name)[t].numpy() for name in sensor_names(env)})
+        assert np.array_equal(command, rows.get("action")[t].numpy())
+        assert phase == PHASES.index(replay.phase)
+
+    class Nudged:
+        """Executes its scripted twin's command plus a fixed nudge; labels the clean one."""
+
+        PHASES = PHASES
+
+        def __init__(self) -> None:
+            self.inner = make_scripted_expert(dt=control_period_s(env))
+
+        @property
+        def phase(self) -> str:
+            return self.inner.phase
+
+        def reset(self) -> None:
+            self.inner.reset()
+
+        def act(self, sensors):
+            self.last_label = self.inner.act(sensors)
+            return np.clip(self.last_label + np.float32(0.1), -1.0, 1.0).astype(np.float32)
+
+    episode, start, final = record_episode(env, Nudged(), seed=3)
+    assert EXECUTED_KEY in episode
+    assert not torch.equal(episode["action"], episode[EXECUTED_KEY])
+    assert torch.equal(episode[EXECUTED_KEY], (episode["action"] + 0.1).clamp(-1.0, 1.0))
+    assert set(start) == {"start_distance_m", "approach_angle_rad", "fill_fraction", "success"}
+    assert 0.0 <= final["fill_fraction"] <= 1.5
+
+
+def test_an_operator_module_refuses_a_batch_of_another_size():
+    env = make_rollout_env("pile_loader", ENV)
+    module = scripted(env, 2)
+    with pytest.raises(ValueError, match="holds 2 operators"):
+        module(TensorDict({name: torch.zeros(3, 1) for name in module.in_keys}, [3]))
+
+
+def test_row_by_row_acts_like_the_unbatched_actor():
+    torch.manual_seed(0)
+    actor = make_actor("nnetv2", sensors=S, stats=STATS).eval()
+    batch = TensorDict({name: torch.randn(5, 1) * 3 for name in S}, [5])
+    with torch.no_grad():
+        rows = RowByRow(actor)(batch.clone())["action"]
+        alone = torch.stack([actor(batch[i].clone())["action"] for i in range(5)])
+    assert torch.equal(rows, alone)
+
+
+def test_actor_weights_sent_to_workers_give_the_in_process_result(tmp_path):
+    torch.manual_seed(0)
+    actor = make_actor("nnetv2", sensors=S, stats=STATS)
+    output = actor.module.controller.output
+    with torch.no_grad():  # mostly full throttle, a little of the sensors: into the pile
+        output.weight.mul_(0.1)
+        output.bias.copy_(torch.tensor([0.0, 0.0, 2.0]))
+    plan = EvaluationPlan("pile_loader", {"control_hz": 20.0}, ("summer",), episodes=2, seed=1)
+    in_process = evaluate(actor, plan, workers=1, progress=False)
+    weights = ActorWeights.of(actor)
+    with torch.no_grad():
+        output.bias.zero_()  # later changes to the actor do not reach the copy
+    sent = evaluate(weights, plan, workers=2, progress=False)
+    saved = save_actor(tmp_path / "actor.pt", ActorWeights.build(weights))
+    from_disk = evaluate(ActorController(str(saved)), plan, workers=1, progress=False)
+    assert same_records(in_process, sent) and same_records(in_process, from_disk)
+    assert in_process[0]["fill_fraction"] > 0.0
+
+
+def same_records(a: list[dict], b: list[dict]) -> bool:
+    def equal(x, y):
+        return x == y or (isinstance(x, float) and np.isnan(x) and np.isnan(y))
+
+    return len(a) == len(b) and all(
+        ra.keys() == rb.keys() and all(equal(ra[k], rb[k]) for k in ra)
+        for ra, rb in zip(a, b, strict=True)
+    )
+
+
+def test_a_rollout_runs_any_simulator_that_ends_its_episodes():
+    """The toy cart: no ``info`` the pile loader reports (NaN), episodes end by time."""
+
+    class Push(TensorDictModuleBase):
+        in_keys, out_keys = ["position"], ["action"]
+
+        def forward(self, tensordict):
+            return tensordict.set("action", torch.full((*tensordict.batch_size, 1), 0.5))
+
+    env = make_rollout_env("toy_cart", {}, num_envs=2, info_keys=("fill_fraction",))
+    run = rollout(env, Push(), seed=0)
+    assert run.lengths == [100, 100]  # pushed past the target: truncated at 100 steps
+    assert bool(run.episode(0).get(("next", "truncated"))[-1])
+    assert np.isnan(run.info(0, "fill_fraction")).all()
+    with pytest.raises(KeyError, match="'success' was not carried"):
+        run.info(0, "success")
+
+
+def test_fine_tuning_evaluates_the_actor_in_memory_as_it_is_now():
+    from pilerl.rl.evaluation import evaluate_groups
+
+    torch.manual_seed(0)
+    actor = make_actor("nnetv2", sensors=S, stats=STATS)
+    output = actor.module.controller.output
+    kwargs = {"simulator": "pile_loader", "env_kwargs": {}, "episodes": 1, "seed": 0}
+    with torch.no_grad():
+        output.weight.zero_()
+        output.bias.zero_()  # stands still: nothing scooped
+    still, *_ = evaluate_groups(actor, {"summer": ["summer"]}, **kwargs)
+    with torch.no_grad():
+        output.bias.copy_(torch.tensor([0.0, 0.0, 2.0]))  # full throttle into the pile
+    driving, *_ = evaluate_groups(actor, {"summer": ["summer"]}, **kwargs)
+    assert still["summer"]["fill_mean"] == 0.0
+    assert driving["summer"]["fill_mean"] > 0.0
