@@ -143,8 +143,8 @@ def test_on_ice_drive_pressure_is_not_a_saw_tooth():
         assert len(pushing) > 40
         smooth = np.convolve(pushing, np.ones(5) / 5, mode="valid")  # 0.25 s mean
         ripple = pushing[2:-2] - smooth
-        # MPa; the rigid four-point tyre contact chattered at 1.8 MPa (main, same run)
-        assert np.std(ripple) < 1.3
+        # MPa; main's rigid tyre contacts chattered at 1.8 MPa here (2.6 at mu 0.2)
+        assert np.std(ripple) < 0.5
 
 
 def test_lifting_in_the_pile_raises_the_boom_pressure():
