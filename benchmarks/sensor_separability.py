@@ -11,12 +11,13 @@ depth 0 "no contact" (the few in between are left out). Per condition it prints:
   its ratio to summer's (the slip cap: well below 1 on ice);
 - ``p_t med``: the telescope pressure's median in contact and without [MPa].
 
-With ``--baseline PATH`` (a checkout of the repository, e.g. /work/main) the same
+With ``--baseline PATH`` (another checkout of the repository, e.g. one made with
+``git worktree add /tmp/before <commit before the change>``) the same
 measurement runs on that checkout's simulator in a subprocess and the table shows both,
 BEFORE (the baseline) and AFTER (this checkout):
 
     python benchmarks/sensor_separability.py
-    python benchmarks/sensor_separability.py --baseline /work/main --starts 6
+    python benchmarks/sensor_separability.py --baseline /tmp/before --starts 6
 """
 
 from __future__ import annotations
@@ -66,6 +67,11 @@ def measure(conditions: tuple[str, ...], starts: int) -> dict[str, dict[str, flo
         env.close()
         depth, p_d, p_t = np.array(rows).T
         contact, free = depth > CONTACT_DEPTH_M, depth == 0.0
+        if not (contact.any() and free.any()):
+            raise SystemExit(
+                f"{condition}: {contact.sum()} contact and {free.sum()} no-contact samples; "
+                "both are needed for an AUC (use more --starts)"
+            )
         labels = np.r_[np.ones(contact.sum()), np.zeros(free.sum())]
         results[condition] = {
             "p_t_auc": float(roc_auc_score(labels, np.r_[p_t[contact], p_t[free]])),
@@ -111,6 +117,13 @@ def main() -> None:
     parser.add_argument("--starts", type=int, default=6, help="seeded starts per condition")
     parser.add_argument("--conditions", nargs="+", default=list(CONDITIONS))
     args = parser.parse_args()
+    if args.starts < 1:
+        parser.error(f"--starts: must be >= 1, got {args.starts}")
+    unknown = sorted(set(args.conditions) - set(CONDITIONS))
+    if unknown:
+        parser.error(f"--conditions: unknown {unknown}; known: {list(CONDITIONS)}")
+    if args.baseline is not None and not (args.baseline / "envs" / "pilerl_pile_loader").is_dir():
+        parser.error(f"--baseline: {args.baseline} is not a checkout of this repository")
     conditions = tuple(args.conditions)
     header = (
         f"{'':<7}{'condition':<10}{'p_t AUC':>8}{'p_d AUC':>8}{'p_d p90':>9}{'/summer':>7}"
