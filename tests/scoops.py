@@ -58,3 +58,40 @@ def run_scoop(
 
 def peak(values: list[float]) -> float:
     return float(np.max(values))
+
+
+@dataclass
+class DriveIn:
+    """One drive at the pile with fixed commands: per-step readings and cutting depth."""
+
+    sensors: dict[str, np.ndarray]
+    depth_m: np.ndarray
+
+
+def drive_in(
+    condition: str,
+    *,
+    seed: int,
+    throttle: float = 0.6,
+    seconds: float = 8.0,
+    then: tuple[float, float, float] | None = None,
+    then_after_s: float = 0.0,
+    **env_kwargs,
+) -> DriveIn:
+    """Drive at the pile with ``throttle``, boom and bucket held (issue #15's measurement);
+    from ``then_after_s`` on, send the command ``then`` (boom, bucket, throttle) instead."""
+    env = gym.make("pilerl/PileLoading-v0", condition=condition, **env_kwargs).unwrapped
+    obs, info = env.reset(seed=seed)
+    readings: dict[str, list[float]] = {k: [] for k in obs}
+    depth = []
+    while info["elapsed_s"] < seconds - 1e-9:
+        late = then is not None and info["elapsed_s"] >= then_after_s - 1e-9
+        action = then if late else (0.0, 0.0, throttle)
+        obs, _, terminated, truncated, info = env.step(np.asarray(action, dtype=np.float32))
+        for name, value in obs.items():
+            readings[name].append(float(value[0]))
+        depth.append(info["cutting_depth_m"])
+        if terminated or truncated:
+            break
+    env.close()
+    return DriveIn({k: np.array(v) for k, v in readings.items()}, np.array(depth))

@@ -222,7 +222,9 @@ CONDITIONS: dict[str, Condition] = {
         name="winter_c",
         description="C: icy surface, snow covering the surface and the pile.",
         material=Material("gravel under snow", 1550.0, 33.0, 2000.0, 15.0, 0.02),
-        ground=Ground(tyre_friction=0.12, rolling_resistance=0.04),
+        # snow-covered ice under lugged tyres: 0.2-0.3 (docs/machine_model.md); bare wet
+        # ice would be ~0.1
+        ground=Ground(tyre_friction=0.20, rolling_resistance=0.04),
         hydraulics=Hydraulics(
             oil_temperature_c=-8.0, valve_lag_s=0.25, pump_lag_s=0.8, speed_scale=0.80
         ),

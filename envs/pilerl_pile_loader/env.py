@@ -55,7 +55,7 @@ from .soil import BucketGeometry, PileGeometry, get_soil_model
 from .task import RewardWeights, ScoopTask, reward_parts
 
 INITIAL_BOOM_ANGLE_RAD = -0.45  # bucket lowered: floor a few cm above the ground
-SETTLE_SECONDS = 0.2  # simulated time to settle on the tyres after reset [s]
+SETTLE_SECONDS = 0.6  # simulated time to settle on the tyres after reset [s]
 LATERAL_OFFSET_RANGE_M = (-0.3, 0.3)  # where along the pile face the bucket aims [m]
 
 

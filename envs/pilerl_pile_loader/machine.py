@@ -22,64 +22,132 @@ WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
 MPA = 1e6  # Pa per MPa
 
 
+def _circle_area_m2(diameter_m: float) -> float:
+    return math.pi * diameter_m**2 / 4
+
+
 @dataclass(frozen=True)
 class MachineParameters:
     """Hydraulic and drive parameters of an Avant 635-class loader (see docs/machine_model.md).
 
-    Cylinders are modelled in joint space: a cylinder of piston area A acting at an
-    effective moment arm r gives joint torque ``p * A * r`` at pressure p.
+    Cylinders are modelled in joint space: a cylinder force F at an effective moment arm r
+    gives joint torque ``F * r``. A cylinder has a piston (bore-side) chamber of area
+    ``pi bore^2 / 4`` that pushes it out and a rod (annulus) chamber of area
+    ``pi (bore^2 - rod^2) / 4`` that pulls it in; the pressure sensors sit on the piston
+    side (the side that carries the load when lifting, curling, or pushing into the pile).
     """
 
     # Work hydraulics
     work_relief_pressure_mpa: float = 20.0  # relief valve setting of the work circuit [MPa]
     tank_pressure_mpa: float = 0.5  # return-line pressure, the floor of every reading [MPa]
-    boom_piston_area_m2: float = math.pi * 0.070**2 / 4  # 70 mm bore [m^2]
+    boom_bore_m: float = 0.070  # boom (lift) cylinder bore [m]
+    boom_rod_m: float = 0.040  # boom cylinder rod diameter [m]
     boom_moment_arm_m: float = 0.32  # effective lever of the boom cylinder [m]
     boom_max_speed_rad_s: float = 0.45  # full-flow boom speed [rad/s]
-    bucket_piston_area_m2: float = math.pi * 0.060**2 / 4  # 60 mm bore [m^2]
+    bucket_bore_m: float = 0.060  # bucket (tilt) cylinder bore [m]
+    bucket_rod_m: float = 0.035  # bucket cylinder rod diameter [m]
     bucket_moment_arm_m: float = 0.20  # effective lever of the bucket cylinder [m]
     bucket_max_speed_rad_s: float = 0.80  # full-flow bucket speed [rad/s]
-    telescope_piston_area_m2: float = math.pi * 0.050**2 / 4  # 50 mm bore [m^2]
+    telescope_bore_m: float = 0.050  # telescope cylinder bore [m]
+    telescope_rod_m: float = 0.028  # telescope cylinder rod diameter [m]
     telescope_extension_m: float = 0.30  # held extension during a scoop [m]
-    # Hydrostatic transmission (HST)
+    # Hydrostatic transmission (HST): one pump, four wheel motors in parallel
     drive_relief_pressure_mpa: float = 25.0  # HST high-pressure relief [MPa]
-    drive_charge_pressure_mpa: float = 2.0  # HST charge pressure, the idle reading [MPa]
+    drive_charge_pressure_mpa: float = 2.0  # HST charge pressure, the low side [MPa]
     wheel_motor_displacement_cm3: float = 200.0  # per wheel motor, per revolution [cm^3]
     max_pump_angle_rad: float = 0.31  # swash-plate angle at full displacement (~18 deg) [rad]
-    max_wheel_speed_rad_s: float = 6.9  # wheel speed at full pump angle (~2 m/s) [rad/s]
+    max_wheel_speed_rad_s: float = 6.9  # wheel speed at full pump flow, no load (~2 m/s)
     wheel_radius_m: float = 0.29  # tyre rolling radius [m]
-    drive_servo_gain: float = 3000.0  # wheel-motor torque per rad/s of speed error [N m s]
+    drive_volumetric_efficiency: float = 0.95  # motor flow / pump flow at relief pressure
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"MachineParameters.{name}: must be finite and > 0, got {value}")
+        for part in ("boom", "bucket", "telescope"):
+            bore, rod = getattr(self, f"{part}_bore_m"), getattr(self, f"{part}_rod_m")
+            if rod >= bore:
+                raise ValueError(
+                    f"MachineParameters.{part}_rod_m: must be smaller than {part}_bore_m "
+                    f"({bore} m), got {rod}"
+                )
+        if self.drive_volumetric_efficiency >= 1.0:
+            raise ValueError(
+                "MachineParameters.drive_volumetric_efficiency: must lie in (0, 1), got "
+                f"{self.drive_volumetric_efficiency}"
+            )
+        if self.tank_pressure_mpa >= self.work_relief_pressure_mpa:
+            raise ValueError("MachineParameters.tank_pressure_mpa: must be below the relief")
+        if self.drive_charge_pressure_mpa >= self.drive_relief_pressure_mpa:
+            raise ValueError("MachineParameters.drive_charge_pressure_mpa: must be below relief")
 
+    # ---- cylinder areas
+    def piston_area_m2(self, part: str) -> float:
+        """Piston-side (bore) area of the ``boom``, ``bucket`` or ``telescope`` cylinder."""
+        return _circle_area_m2(getattr(self, f"{part}_bore_m"))
+
+    def annulus_area_m2(self, part: str) -> float:
+        """Rod-side (annulus) area of the ``boom``, ``bucket`` or ``telescope`` cylinder."""
+        return self.piston_area_m2(part) - _circle_area_m2(getattr(self, f"{part}_rod_m"))
+
+    def cylinder_force_range_n(self, part: str) -> tuple[float, float]:
+        """(most pulling, most pushing) cylinder force [N]: one chamber at the relief
+        pressure, the other at the tank pressure."""
+        relief, tank = self.work_relief_pressure_mpa * MPA, self.tank_pressure_mpa * MPA
+        piston, annulus = self.piston_area_m2(part), self.annulus_area_m2(part)
+        return -(relief * annulus - tank * piston), relief * piston - tank * annulus
+
+    def piston_pressure_mpa(self, part: str, force_n: float) -> float:
+        """Pressure in the piston chamber [MPa] of a cylinder pushing with ``force_n``.
+
+        A held cylinder carries its load on one chamber while the other drains to the
+        tank line: pushing (force > 0) raises the piston side above the tank pressure,
+        pulling leaves it at the tank pressure (the rod side takes the load). Signed, so a
+        pull never reads as a push (the old |force| reading did).
+        """
+        tank = self.tank_pressure_mpa * MPA
+        pressure = (force_n + tank * self.annulus_area_m2(part)) / self.piston_area_m2(part)
+        return max(tank, pressure) / MPA
+
+    # ---- drive
     @property
     def motor_displacement_m3_rad(self) -> float:
         """Wheel-motor displacement per radian [m^3/rad]."""
         return self.wheel_motor_displacement_cm3 * 1e-6 / (2 * math.pi)
 
     @property
+    def max_pump_flow_m3_s(self) -> float:
+        """Pump flow at full displacement [m^3/s]: four motors at ``max_wheel_speed_rad_s``."""
+        return 4 * self.motor_displacement_m3_rad * self.max_wheel_speed_rad_s
+
+    @property
+    def max_drive_pressure_difference_pa(self) -> float:
+        """Loop pressure difference at the HST relief [Pa]."""
+        return (self.drive_relief_pressure_mpa - self.drive_charge_pressure_mpa) * MPA
+
+    @property
+    def drive_leakage_gain_pa_s_m3(self) -> float:
+        """Pressure per unit of flow lost to leakage [Pa s/m^3]: at the relief pressure the
+        loop loses ``1 - drive_volumetric_efficiency`` of full pump flow."""
+        leak_m3_s = (1.0 - self.drive_volumetric_efficiency) * self.max_pump_flow_m3_s
+        return self.max_drive_pressure_difference_pa / leak_m3_s
+
+    @property
     def max_wheel_torque_nm(self) -> float:
         """Wheel-motor torque at the HST relief pressure [N m]."""
-        delta_p = (self.drive_relief_pressure_mpa - self.drive_charge_pressure_mpa) * MPA
-        return delta_p * self.motor_displacement_m3_rad
+        return self.max_drive_pressure_difference_pa * self.motor_displacement_m3_rad
 
     @property
     def max_boom_torque_nm(self) -> float:
-        return (
-            self.work_relief_pressure_mpa * MPA * self.boom_piston_area_m2 * self.boom_moment_arm_m
-        )
+        return self.cylinder_force_range_n("boom")[1] * self.boom_moment_arm_m
 
     @property
     def max_bucket_torque_nm(self) -> float:
-        relief = self.work_relief_pressure_mpa * MPA
-        return relief * self.bucket_piston_area_m2 * self.bucket_moment_arm_m
+        return self.cylinder_force_range_n("bucket")[1] * self.bucket_moment_arm_m
 
     @property
     def max_telescope_force_n(self) -> float:
-        return self.work_relief_pressure_mpa * MPA * self.telescope_piston_area_m2
+        return self.cylinder_force_range_n("telescope")[1]
 
 
 def load_machine_spec() -> mujoco.MjSpec:
@@ -119,10 +187,13 @@ class Machine:
         self._telescope_q, self._telescope_v = joint("telescope")
         self._articulation_q, _ = joint("articulation")
         self._wheel_v = np.array([joint(w)[1] for w in WHEELS])
+        self._tyre_joints = np.array([model.joint(f"tyre_{w[6:]}").id for w in WHEELS])
+        self._tyre_q = np.array([joint(f"tyre_{w[6:]}")[0] for w in WHEELS])
+        self._tyre_v = np.array([joint(f"tyre_{w[6:]}")[1] for w in WHEELS])
         self.boom_actuator = actuator("boom")
         self.bucket_actuator = actuator("bucket")
         self.telescope_actuator = actuator("telescope")
-        self.wheel_actuators = np.array([actuator(w) for w in WHEELS])
+        self.drive_actuator = actuator("hst")
         self.front_frame_body = model.body("front_frame").id
         self.bucket_body = model.body("bucket").id
         self.cutting_edge_site = model.site("cutting_edge").id
@@ -131,20 +202,25 @@ class Machine:
     # ------------------------------------------------------------------ set-up
     def _write_hydraulics(self) -> None:
         m, p = self.model, self.params
-        m.actuator_forcerange[self.boom_actuator] = (-p.max_boom_torque_nm, p.max_boom_torque_nm)
+        pull, push = p.cylinder_force_range_n("boom")
+        m.actuator_forcerange[self.boom_actuator] = (
+            pull * p.boom_moment_arm_m,
+            push * p.boom_moment_arm_m,
+        )
+        pull, push = p.cylinder_force_range_n("bucket")
         m.actuator_forcerange[self.bucket_actuator] = (
-            -p.max_bucket_torque_nm,
-            p.max_bucket_torque_nm,
+            pull * p.bucket_moment_arm_m,
+            push * p.bucket_moment_arm_m,
         )
-        m.actuator_forcerange[self.telescope_actuator] = (
-            -p.max_telescope_force_n,
-            p.max_telescope_force_n,
-        )
-        for a in self.wheel_actuators:
-            m.actuator_forcerange[a] = (-p.max_wheel_torque_nm, p.max_wheel_torque_nm)
-            m.actuator_gainprm[a, 0] = p.drive_servo_gain
-            m.actuator_biasprm[a, 2] = -p.drive_servo_gain
-            m.actuator_ctrlrange[a] = (-p.max_wheel_speed_rad_s, p.max_wheel_speed_rad_s)
+        m.actuator_forcerange[self.telescope_actuator] = p.cylinder_force_range_n("telescope")
+        # the drive: actuator force = loop pressure difference [Pa], gear = displacement
+        hst, gain = self.drive_actuator, p.drive_leakage_gain_pa_s_m3
+        m.actuator_gear[hst, 0] = p.motor_displacement_m3_rad
+        m.actuator_gainprm[hst, 0] = gain
+        m.actuator_biasprm[hst, 2] = -gain
+        dp = p.max_drive_pressure_difference_pa
+        m.actuator_forcerange[hst] = (-dp, dp)
+        m.actuator_ctrlrange[hst] = (-p.max_pump_flow_m3_s, p.max_pump_flow_m3_s)
         m.actuator_ctrlrange[self.boom_actuator] = (-p.boom_max_speed_rad_s, p.boom_max_speed_rad_s)
         m.actuator_ctrlrange[self.bucket_actuator] = (
             -p.bucket_max_speed_rad_s,
@@ -163,13 +239,14 @@ class Machine:
 
         Args:
             boom, bucket: valve openings in [-1, 1] (fraction of full flow; + raises / curls).
-            pump_fraction: HST pump displacement in [-1, 1] (+ drives forward).
+            pump_fraction: HST pump displacement in [-1, 1] (+ drives forward); the pump
+                flow goes to the four wheel motors in parallel.
         """
         p, d, s = self.params, self.data, self.speed_scale
         d.ctrl[self.boom_actuator] = boom * p.boom_max_speed_rad_s * s
         d.ctrl[self.bucket_actuator] = bucket * p.bucket_max_speed_rad_s * s
         d.ctrl[self.telescope_actuator] = p.telescope_extension_m
-        d.ctrl[self.wheel_actuators] = pump_fraction * p.max_wheel_speed_rad_s * s
+        d.ctrl[self.drive_actuator] = pump_fraction * p.max_pump_flow_m3_s * s
 
     def limit_cylinder_windup(self) -> None:
         """Keep each cylinder's integrated flow within the oil-column deflection of its joint.
@@ -223,6 +300,15 @@ class Machine:
         )
         return float(vel[3:5] @ self.heading())
 
+    def wheel_loads_n(self) -> np.ndarray:
+        """Normal load on each tyre [N], order fl, fr, rl, rr, from its radial spring."""
+        m, d = self.model, self.data
+        deflection = d.qpos[self._tyre_q] - m.qpos_spring[self._tyre_q]
+        return (
+            m.jnt_stiffness[self._tyre_joints] * deflection
+            + m.dof_damping[self._tyre_v] * d.qvel[self._tyre_v]
+        )
+
     def wheel_speeds(self) -> np.ndarray:
         """Wheel angular speeds [rad/s], order fl, fr, rl, rr."""
         return self.data.qvel[self._wheel_v]
@@ -233,28 +319,37 @@ class Machine:
         return float(np.mean(rim_speed) - self.forward_speed())
 
     def drive_pressure_mpa(self) -> float:
-        """p_d: HST high-side pressure [MPa] from the wheel-motor torques (traction)."""
-        torque = np.abs(self.data.actuator_force[self.wheel_actuators]).mean()
+        """p_d: HST high-side pressure [MPa].
+
+        The four wheel motors sit in parallel on the loop, so they share one pressure
+        difference (the drive actuator's force); the high side reads it above the charge
+        pressure whichever way the loop is loaded (a shuttle valve picks the higher line).
+        """
         p = self.params
-        return p.drive_charge_pressure_mpa + torque / p.motor_displacement_m3_rad / MPA
+        loop_pa = abs(float(self.data.actuator_force[self.drive_actuator]))
+        return p.drive_charge_pressure_mpa + loop_pa / MPA
 
     def boom_pressure_mpa(self) -> float:
-        """p_l: boom cylinder load pressure [MPa] from the cylinder torque."""
+        """p_l: boom (lift) cylinder piston-side pressure [MPa]; + torque raises the boom."""
         p = self.params
-        force = abs(self.data.actuator_force[self.boom_actuator]) / p.boom_moment_arm_m
-        return p.tank_pressure_mpa + force / p.boom_piston_area_m2 / MPA
+        force = float(self.data.actuator_force[self.boom_actuator]) / p.boom_moment_arm_m
+        return p.piston_pressure_mpa("boom", force)
 
     def bucket_pressure_mpa(self) -> float:
-        """p_b: bucket cylinder load pressure [MPa] from the cylinder torque."""
+        """p_b: bucket cylinder piston-side pressure [MPa]; the piston side curls (+ theta2)."""
         p = self.params
-        force = abs(self.data.actuator_force[self.bucket_actuator]) / p.bucket_moment_arm_m
-        return p.tank_pressure_mpa + force / p.bucket_piston_area_m2 / MPA
+        force = float(self.data.actuator_force[self.bucket_actuator]) / p.bucket_moment_arm_m
+        return p.piston_pressure_mpa("bucket", force)
 
     def telescope_pressure_mpa(self) -> float:
-        """p_t: telescope cylinder pressure [MPa] from the force along the boom."""
-        p = self.params
-        force = abs(self.data.actuator_force[self.telescope_actuator])
-        return p.tank_pressure_mpa + force / p.telescope_piston_area_m2 / MPA
+        """p_t: telescope cylinder piston-side pressure [MPa].
+
+        The piston side holds the telescope out against a push along the boom (the bucket
+        driven into the pile); the pull of gravity on a lowered telescope and bucket is
+        carried by the rod side and leaves the reading at the tank pressure.
+        """
+        force = float(self.data.actuator_force[self.telescope_actuator])
+        return self.params.piston_pressure_mpa("telescope", force)
 
     def pump_angle(self, pump_fraction: float) -> float:
         """a: HST swash-plate angle [rad] for a displacement fraction."""
@@ -268,6 +363,6 @@ class Machine:
             self.boom_actuator,
             self.bucket_actuator,
             self.telescope_actuator,
-            *self.wheel_actuators,
+            self.drive_actuator,
         ]
         return float(power[own].sum())

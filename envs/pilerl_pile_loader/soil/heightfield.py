@@ -14,7 +14,8 @@ Per update (a few per control step):
    see docs/machine_model.md). MuJoCo applies it through three actuators on the
    cutting-edge site: ``soil_push`` resists forward motion along the heading (one-sided:
    soil pushes, never pulls), ``soil_side`` resists sideways motion of the buried bucket,
-   and ``soil_lift`` resists vertical motion (breakout). Each is a damper ``F = -c v``
+   and ``soil_lift`` resists vertical motion (breakout, ``breakout_force_n``: the uplift
+   resistance of a buried plate after Meyerhof & Adams, 1968). Each is a damper ``F = -c v``
    clamped to a force cap, so MuJoCo's implicit integrator handles the stiffness while the
    soil stays perfectly plastic once the cap is reached. The vertical cap is the same up
    and down: an asymmetric damper on a machine vibrating on its tyres would rectify the
@@ -36,7 +37,7 @@ import mujoco
 import numpy as np
 
 from .base import SoilModel
-from .earthmoving import cutting_force_n, fee_factors
+from .earthmoving import GRAVITY_M_S2, cutting_force_n, fee_factors
 
 if TYPE_CHECKING:
     from ..machine import Machine
@@ -44,7 +45,7 @@ if TYPE_CHECKING:
 RAKE_ANGLE_DEG = 65.0  # effective rake of a loader bucket's back plate (McKyes' beta) [deg]
 BUCKET_RESISTANCE_FACTOR = 2.0  # bucket vs flat blade: side plates and floor friction
 YIELD_SPEED_M_S = 0.002  # blade speed at which the full FEE force develops [m/s]
-VERTICAL_RATIO = 0.25  # vertical (breakout) resistance / horizontal cutting force
+UPLIFT_COEFFICIENT = 0.95  # Meyerhof & Adams (1968) K_u for phi 30-40 deg: breakout shear
 SIDE_RATIO = 1.0  # sideways resistance of a buried bucket / horizontal cutting force
 SPILL_TIME_CONSTANT_S = 0.15  # how fast an over-full bucket sheds its excess [s]
 MAX_PILE_HEIGHT_M = 2.0  # heightfield elevation range [m]
@@ -137,7 +138,7 @@ class HeightfieldSoil(SoilModel):
         self._depth_m = 0.0
         self.initial_mass_kg = self.pile_mass_kg
         self._write_payload()
-        self._write_resistance(0.0, np.array([1.0, 0.0]))
+        self._write_resistance(0.0, np.array([1.0, 0.0]), 0.0)
         self._sync_hfield()
 
     def _undulation(self, rng: np.random.Generator) -> np.ndarray:
@@ -191,7 +192,7 @@ class HeightfieldSoil(SoilModel):
             density_kg_m3=density,
             cohesion_pa=self.material.cohesion_pa,
         )
-        self._write_resistance(force, heading)
+        self._write_resistance(force, heading, self.breakout_force_n(self._depth_m))
         self._write_payload()
 
     def _window(self, xy: np.ndarray, margin: float) -> tuple[slice, slice] | None:
@@ -277,7 +278,28 @@ class HeightfieldSoil(SoilModel):
         return total / len(self._edge_offsets_list) if inside else 0.0
 
     # ------------------------------------------------------------------ MuJoCo writes
-    def _write_resistance(self, force_n: float, heading: np.ndarray) -> None:
+    def breakout_force_n(self, depth_m: float) -> float:
+        """Resistance [N] of the pile to lifting the bucket floor ``depth_m`` below its surface.
+
+        Meyerhof & Adams (1968), a strip anchor pulled up through sand (shallow case): the
+        shear on the two failure planes, ``w (gamma d^2 K_u tan phi + 2 c d)``, plus the
+        weight of the soil column over the bucket floor, ``gamma w L d``, less what the
+        bucket already holds (its weight is the payload body's). 0 outside the pile.
+        """
+        if depth_m <= 0.0:
+            return 0.0
+        m = self.material
+        gamma = m.density_kg_m3 * GRAVITY_M_S2  # unit weight [N/m^3]
+        width = self.bucket.width_m
+        floor_m = float(self.bucket.cutting_edge_xz[0] - self.bucket.polygon[0, 0])
+        shear = width * (
+            gamma * depth_m**2 * UPLIFT_COEFFICIENT * math.tan(self.repose_angle_rad)
+            + 2.0 * m.cohesion_pa * depth_m
+        )
+        column = gamma * width * floor_m * depth_m - self.bucket_load_kg * GRAVITY_M_S2
+        return shear + max(column, 0.0)
+
+    def _write_resistance(self, force_n: float, heading: np.ndarray, breakout_n: float) -> None:
         m, d = self.model, self.data
         rotation = d.xmat[self.machine.bucket_body].reshape(3, 3)
         forward_world = np.array([heading[0], heading[1], 0.0])
@@ -289,9 +311,8 @@ class HeightfieldSoil(SoilModel):
         side = SIDE_RATIO * force_n
         m.actuator_forcerange[self._side] = (-side, side)
         m.actuator_biasprm[self._side, 2] = -side / YIELD_SPEED_M_S
-        vertical = VERTICAL_RATIO * force_n
-        m.actuator_forcerange[self._lift] = (-vertical, vertical)
-        m.actuator_biasprm[self._lift, 2] = -vertical / YIELD_SPEED_M_S
+        m.actuator_forcerange[self._lift] = (-breakout_n, breakout_n)
+        m.actuator_biasprm[self._lift, 2] = -breakout_n / YIELD_SPEED_M_S
 
     def _write_payload(self) -> None:
         mass = max(self.bucket_load_kg, 1e-6)
