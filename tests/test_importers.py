@@ -32,8 +32,10 @@ from pilerl.data.importers import (
     TimeSpec,
     create_store,
     import_logs,
+    import_to_dataset,
     load_mapping,
     mapping_from_dict,
+    quality_dir,
     save_mapping,
 )
 from pilerl.data.schema import EpisodeMeta, SchemaError, make_episode
@@ -220,6 +222,20 @@ def test_log_imports_as_episodes(tmp_path, mapping, table, fmt):
         assert meta.condition == "site-a" and meta.operator == {"id": "op7", "kind": "human"}
         assert 10.0 <= meta.rate_hz <= 100.0
         start += n
+
+
+def test_import_to_dataset_creates_then_appends_and_numbers_the_reports(tmp_path, table):
+    path = write_log(table, tmp_path / "log.csv")
+    store, episodes, metas = import_to_dataset([path], log_mapping(), tmp_path / "ds")
+    assert len(store) == len(episodes) == len(metas) == 3
+    assert quality_dir(tmp_path / "ds") == tmp_path / "ds" / "quality" / "import_000"
+    store, _, metas = import_to_dataset([path], log_mapping(), tmp_path / "ds")
+    assert len(EpisodeStore.open(tmp_path / "ds")) == 6 and [m.id for m in metas] == [3, 4, 5]
+    assert quality_dir(tmp_path / "ds") == tmp_path / "ds" / "quality" / "import_001"
+    (tmp_path / "junk").mkdir()
+    (tmp_path / "junk" / "notes.txt").write_text("not a dataset")
+    with pytest.raises(SchemaError, match="junk: not a usable pilerl dataset"):
+        import_to_dataset([path], log_mapping(), tmp_path / "junk")
 
 
 def test_hdf5_column_datasets_may_be_n_by_1(tmp_path, mapping, table):

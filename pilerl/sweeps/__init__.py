@@ -1,5 +1,8 @@
 """Sweeps: skipping finished jobs on re-runs, and summarising a multirun directory.
 
+``hydra_record`` is the one reader of what Hydra recorded in a job directory (overrides,
+group choices, config), for the summary here and for ``pilerl.reports``.
+
 ``summarize_sweep`` and ``load_jobs`` are imported on first use, so that
 ``python -m pilerl.sweeps.summary`` runs its module once (no runpy warning).
 """

@@ -39,7 +39,9 @@ from .dataset import (
     import_episodes,
     import_logs,
     import_new_dataset,
+    import_to_dataset,
     machine_ranges,
+    quality_dir,
     read_provenance,
 )
 from .episodes import ImportedEpisode, read_all, read_episodes, read_log_episodes, read_logs
@@ -90,11 +92,13 @@ __all__ = [
     "import_episodes",
     "import_logs",
     "import_new_dataset",
+    "import_to_dataset",
     "known_suffixes",
     "load_mapping",
     "machine_ranges",
     "mapping_from_dict",
     "mapping_to_dict",
+    "quality_dir",
     "quality_report",
     "read_all",
     "read_episodes",

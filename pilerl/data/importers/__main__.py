@@ -13,22 +13,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from pilerl.data.schema import SchemaError
-from pilerl.data.store import EpisodeStore
 
-from .dataset import import_episodes, import_new_dataset, read_provenance
+from .dataset import import_to_dataset, quality_dir
 from .mapping import load_mapping
 from .quality import quality_report
 from .readers import known_suffixes
-
-
-def open_dataset(root: Path) -> EpisodeStore:
-    """An existing dataset opened for writing; a broken one is an error naming it."""
-    try:
-        return EpisodeStore.open(root, writable=True)
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
-        raise SchemaError(
-            f"{root}: not a usable pilerl dataset ({type(error).__name__}: {error})"
-        ) from None
 
 
 def simulator_ranges(name: str) -> dict[str, tuple[float, float]]:
@@ -78,17 +67,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     args = parser.parse_args(argv)
     try:
-        mapping = load_mapping(args.mapping)
-        if (args.dataset / "index.json").exists() or (
-            args.dataset.is_dir() and any(args.dataset.iterdir())
-        ):
-            store = open_dataset(args.dataset)
-            episodes, metas = import_episodes(args.logs, mapping, store)
-        else:  # every log is checked before the dataset appears
-            store, episodes = import_new_dataset(
-                args.logs, mapping, args.dataset, description=args.description
-            )
-            metas = [e.meta for e in episodes]
+        store, episodes, metas = import_to_dataset(
+            args.logs, load_mapping(args.mapping), args.dataset, description=args.description
+        )
     except (SchemaError, OSError) as error:  # LogImportError, MappingError: the message says where
         raise SystemExit(f"error: {error}") from None
     print(
@@ -98,10 +79,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     if args.no_report:
         return
-    out = (
-        args.report
-        or args.dataset / "quality" / f"import_{len(read_provenance(args.dataset)) - 1:03d}"
-    )
+    out = args.report or quality_dir(args.dataset)
     required = [s.strip() for s in args.controller_sensors.split(",") if s.strip()]
     reference = simulator_ranges(args.simulator) if args.simulator else None
     report = quality_report(

@@ -25,7 +25,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from pilerl.data.curation import compute_stats
-from pilerl.data.schema import EpisodeMeta
+from pilerl.data.schema import EpisodeMeta, SchemaError
 from pilerl.data.store import EpisodeStore
 from pilerl.io import write_text_atomic
 
@@ -117,6 +117,43 @@ def import_new_dataset(
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return EpisodeStore.open(root), episodes
+
+
+def import_to_dataset(
+    paths: str | Path | Iterable[str | Path],
+    mapping: LogMapping | Mapping | str | Path,
+    root: str | Path,
+    *,
+    description: str = "",
+) -> tuple[EpisodeStore, list[ImportedEpisode], list[EpisodeMeta]]:
+    """Import logs into the dataset at ``root``: appended when a dataset is there
+    (``import_episodes``), else a new one built from the mapping (``import_new_dataset``;
+    ``description`` names it). All or nothing either way. Returns the dataset, the read
+    episodes (for the quality report) and the metadata of the imported ones."""
+    mapping = load_mapping(mapping)
+    root = Path(root)
+    if (root / "index.json").exists() or (root.is_dir() and any(root.iterdir())):
+        store = _open_for_import(root)
+        episodes, metas = import_episodes(paths, mapping, store)
+        return store, episodes, metas
+    store, episodes = import_new_dataset(paths, mapping, root, description=description)
+    return store, episodes, [e.meta for e in episodes]
+
+
+def quality_dir(root: str | Path) -> Path:
+    """Where the quality report of the dataset's latest import goes:
+    ``root/quality/import_<k>`` with k the import's number (000 first)."""
+    return Path(root) / "quality" / f"import_{len(read_provenance(root)) - 1:03d}"
+
+
+def _open_for_import(root: Path) -> EpisodeStore:
+    """An existing dataset opened for writing; a broken one is an error naming it."""
+    try:
+        return EpisodeStore.open(root, writable=True)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
+        raise SchemaError(
+            f"{root}: not a usable pilerl dataset ({type(error).__name__}: {error})"
+        ) from None
 
 
 def finish_import(

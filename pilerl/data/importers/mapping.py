@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, UnsupportedValueType
 
 from pilerl.io import write_text_atomic
 
@@ -271,8 +273,6 @@ def load_mapping(source: LogMapping | Mapping | str | Path) -> LogMapping:
 
 def mapping_from_dict(data: Mapping, *, where: str = "mapping") -> LogMapping:
     """Build and check a ``LogMapping`` from plain data (YAML / JSON / DictConfig)."""
-    from omegaconf import DictConfig, OmegaConf
-
     if isinstance(data, DictConfig):
         data = OmegaConf.to_container(data, resolve=True)
     mapping = _structured(data, where)
@@ -473,9 +473,6 @@ def _structured(data: Mapping, where: str) -> LogMapping:
     ``MISSING`` are the required ones the data did not give. OmegaConf's errors are
     reworded to name the field under ``where`` (the file, or ``mapping``).
     """
-    from omegaconf import OmegaConf
-    from omegaconf.errors import OmegaConfBaseException
-
     if not isinstance(data, Mapping):
         raise MappingError(f"{where}: expected a mapping of fields, got {type(data).__name__}")
     try:
@@ -504,8 +501,6 @@ def _literal(value: object) -> object:
 
 def _describe(error, where: str) -> str:  # noqa: ANN001 - an OmegaConfBaseException
     """One line naming the field for an error raised by ``OmegaConf.merge``."""
-    from omegaconf.errors import ConfigKeyError, UnsupportedValueType
-
     key = str(error.full_key)
     path = f"{where}.{key}" if key else where
     schema = error.object_type
@@ -539,8 +534,6 @@ def _type_name(annotation: object) -> str:
 
 def _first_missing(config, path: str) -> tuple[str, list[str]] | None:  # noqa: ANN001
     """The first node (in field order) with required fields left unset, and their names."""
-    from omegaconf import DictConfig, OmegaConf
-
     names = [str(k) for k in config if OmegaConf.is_missing(config, k)]
     if names:
         return path, names
