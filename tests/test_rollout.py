@@ -214,3 +214,16 @@ def test_fine_tuning_evaluates_the_actor_in_memory_as_it_is_now():
     driving, *_ = evaluate_groups(actor, {"summer": ["summer"]}, **kwargs)
     assert still["summer"]["fill_mean"] == 0.0
     assert driving["summer"]["fill_mean"] > 0.0
+
+
+def test_a_filmed_rollout_has_a_frame_at_reset_and_every_stride_steps():
+    env = make_rollout_env(
+        "pile_loader",
+        {**ENV, "render_mode": "rgb_array", "render_size": (32, 48)},
+        num_envs=2,
+        info_keys=RECORDED_INFO,
+    )
+    run = rollout(env, scripted(env, 2), seed=7, frame_stride=10)
+    for i in range(2):  # frame k shows the state after 10 k steps, up to the episode's end
+        assert len(run.frames[i]) == 1 + run.lengths[i] // 10
+        assert run.frames[i][0].shape == (32, 48, 3)
