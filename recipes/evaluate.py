@@ -46,7 +46,9 @@ def main(cfg: DictConfig) -> float:
     videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
     # --- the controller: a checkpoint (loaded once here, so a bad file fails now) or scripted
     if checkpoint is None:
-        controller = ScriptedController(config.operator, name=config.name or "scripted")
+        controller = ScriptedController(
+            config.expert, name=config.name or "scripted", simulator=config.env.simulator
+        )
     else:
         load_actor(checkpoint)
         name = config.name or checkpoint.resolve().parent.name

@@ -42,8 +42,8 @@ def main(cfg: DictConfig) -> None:
     sim = env.unwrapped
     store = EpisodeStore.create(
         config.out_dir,
-        sensors=sim.sensor_units,
-        controls=list(sim.control_names),
+        sensors=config.env.plugin().sensor_units,
+        controls=list(config.env.plugin().controls),
         exist_ok=True,
         description="keyboard teleoperation",
     )

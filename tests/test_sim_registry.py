@@ -44,13 +44,24 @@ def test_toy_plugin_runs_through_the_same_api():
     check_env_specs(make_torchrl_env("toy_cart", seed=0))
 
 
+VALID = {
+    "name": "x",
+    "gym_id": "ns/X-v0",
+    "entry_point": "m:C",
+    "sensors": {"position": {"unit": "m", "low": -1.0, "high": 1.0}},
+    "controls": ["force"],
+    "conditions": {"nominal": "the only one"},
+    "options": "m:Options",
+}
+
+
 @pytest.mark.parametrize(
     ("declaration", "message"),
     [
-        ({"name": "x", "gym_id": "bad id", "entry_point": "m:C"}, "gym_id"),
-        ({"name": "x", "gym_id": "ns/X-v0", "entry_point": "no colon"}, "entry_point"),
-        ({"name": "x", "gym_id": "ns/X-v0"}, "missing fields ['entry_point']"),
-        ({"name": "x", "gym_id": "ns/X-v0", "entry_point": "m:C", "colour": 1}, "unknown"),
+        ({**VALID, "gym_id": "bad id"}, "gym_id"),
+        ({**VALID, "entry_point": "no colon"}, "entry_point"),
+        ({k: v for k, v in VALID.items() if k != "entry_point"}, "missing fields ['entry_point']"),
+        ({**VALID, "colour": 1}, "unknown"),
         (["not", "a", "mapping"], "must be a mapping"),
     ],
 )

@@ -52,9 +52,13 @@ class PipelineDemosConfig:
         checks.non_negative_int("demos.seed", self.seed)
         checks.positive_int("demos.workers", self.workers)
 
-    def physics_hz_ok(self, env: EnvConfig) -> bool:
-        """Whether ``env`` simulates at least one physics step per recorded sample."""
-        return env.physics_hz >= self.record_hz
+    def check_rate(self, env: EnvConfig) -> None:
+        """``record_hz`` is a control rate ``env``'s simulator accepts (the pile loader: at
+        most its physics rate)."""
+        try:
+            env.make_kwargs(control_hz=self.record_hz)
+        except ValueError as error:
+            raise ValueError(f"demos.record_hz ({self.record_hz}): {error}") from None
 
 
 @dataclass
@@ -102,9 +106,6 @@ class PipelineConfig:
                 f"policy: {self.policy.name!r} cannot be fine-tuned by RL (not "
                 f"differentiable); choose one of {list(NEURAL_CONTROLLERS)}"
             )
-        if not self.demos.physics_hz_ok(self.env):
-            raise ValueError(
-                f"demos.record_hz ({self.demos.record_hz}) must be <= env.physics_hz "
-                f"({self.env.physics_hz})"
-            )
+        self.demos.check_rate(self.env)
+        self.evaluation.condition_names(self.env)
         check_controller(self.policy, self.sensors, trainer=None)

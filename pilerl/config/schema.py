@@ -7,7 +7,7 @@ library arguments once, at their boundary (``EnvConfig.make_kwargs``).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -15,77 +15,11 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
 from pilerl.operators import OperatorStyle
+from pilerl.sim.settings import EnvConfig, register_env_configs
 
 from . import checks
 
-MAX_ANGLE_DEG = 90.0  # approach angles beyond this face away from the pile
-
-
-@dataclass
-class EnvConfig:
-    """Which simulator to build and with what arguments.
-
-    Attributes:
-        simulator: plugin name (``pile_loader``, ``toy_cart``...).
-        condition: condition preset (``summer``, ``winter_a`` .. ``winter_d``).
-        soil: soil model (``heightfield`` or ``particles``).
-        soil_options: keyword options of the soil model (e.g. ``{max_particles: 350}``).
-        condition_overrides: changes to the condition's physical values, by part and field
-            (e.g. ``{ground: {tyre_friction: 0.08}}``); checked by the simulator.
-        control_hz: control rate [Hz].
-        physics_hz: physics rate [Hz] (>= 500).
-        sensor_noise: multiplier of the sensors' default noise (0 = noiseless).
-        start_distance_range_m: cutting edge to pile toe at reset [m], (low, high).
-        approach_angle_range_deg: heading relative to the pile normal [deg], (low, high).
-    """
-
-    simulator: str = "pile_loader"
-    condition: str = "summer"
-    soil: str = "heightfield"
-    soil_options: dict[str, Any] = field(default_factory=dict)
-    condition_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
-    control_hz: float = 20.0
-    physics_hz: float = 500.0
-    sensor_noise: float = 1.0
-    start_distance_range_m: list[float] = field(default_factory=lambda: [1.0, 5.0])
-    approach_angle_range_deg: list[float] = field(default_factory=lambda: [-10.0, 10.0])
-
-    def __post_init__(self) -> None:
-        from pilerl.sim import available_simulators
-
-        checks.one_of("env.simulator", self.simulator, available_simulators())
-        checks.name("env.condition", self.condition)
-        checks.name("env.soil", self.soil)
-        checks.positive("env.control_hz", self.control_hz)
-        checks.positive("env.physics_hz", self.physics_hz)
-        if self.physics_hz < self.control_hz:
-            raise ValueError(
-                f"env.physics_hz ({self.physics_hz}) must be >= env.control_hz "
-                f"({self.control_hz}): each control step runs at least one physics step"
-            )
-        checks.non_negative("env.sensor_noise", self.sensor_noise)
-        checks.interval("env.start_distance_range_m", self.start_distance_range_m, low=0.0)
-        checks.interval(
-            "env.approach_angle_range_deg",
-            self.approach_angle_range_deg,
-            low=-MAX_ANGLE_DEG,
-            high=MAX_ANGLE_DEG,
-        )
-        for part, values in self.condition_overrides.items():
-            if not isinstance(values, dict):
-                raise ValueError(f"env.condition_overrides.{part}: must map fields to numbers")
-            for key, value in values.items():
-                checks.finite(f"env.condition_overrides.{part}.{key}", value)
-
-    def make_kwargs(self, **overrides) -> dict:
-        """Keyword arguments for ``pilerl.sim.make_gym_env`` (simulator name excluded)."""
-        kwargs = {k: v for k, v in asdict(self).items() if k != "simulator"}
-        if not kwargs["condition_overrides"]:  # simulators without conditions need not know it
-            del kwargs["condition_overrides"]
-        kwargs["start_distance_range_m"] = tuple(kwargs["start_distance_range_m"])
-        kwargs["approach_angle_range_deg"] = tuple(kwargs["approach_angle_range_deg"])
-        kwargs.update(overrides)
-        return kwargs
+CONF_ENV = Path(__file__).resolve().parents[2] / "conf" / "env"  # this checkout's env YAMLs
 
 
 @dataclass
@@ -129,10 +63,10 @@ class RecordConfig:
         env: simulator arguments; ``env.control_hz`` is replaced by ``record_hz``.
         n_episodes: episodes to record (the paper: 72 summer demonstrations).
         seed: base seed (episode i: env seed ``seed * 100000 + i``, its own style).
-        record_hz: sampling (= control) rate of the recording [Hz] (the paper: 500).
-        trigger_sensor: the operators' impact cue (``drive_pressure`` or
-            ``telescope_pressure``; see ``pilerl.operators.sample_style``).
-        mistake_rate: share of operators who raise the boom too early.
+        record_hz: sampling (= control) rate of the recording [Hz] (the paper: 500); it
+            replaces ``env.control_hz`` (the simulator must declare that option).
+        expert: options of the simulator's scripted expert for drawn operator styles
+            (the pile loader's: ``trigger_sensor``, ``mistake_rate``); ``{}``: its defaults.
         workers: recording processes.
         out_dir: dataset directory; an existing one is resumed.
     """
@@ -141,23 +75,19 @@ class RecordConfig:
     n_episodes: int = 72
     seed: int = 0
     record_hz: float = 500.0
-    trigger_sensor: str = "drive_pressure"
-    mistake_rate: float = 0.28
+    expert: dict[str, Any] = field(default_factory=dict)
     workers: int = 2
     out_dir: str = MISSING
 
     def __post_init__(self) -> None:
-        from pilerl.operators.scripted import TRIGGER_RANGES_MPA
-
         checks.positive_int("n_episodes", self.n_episodes)
         checks.non_negative_int("seed", self.seed)
         checks.positive("record_hz", self.record_hz)
-        if self.env.physics_hz < self.record_hz:
-            raise ValueError(
-                f"record_hz ({self.record_hz}) must be <= env.physics_hz ({self.env.physics_hz})"
-            )
-        checks.one_of("trigger_sensor", self.trigger_sensor, sorted(TRIGGER_RANGES_MPA))
-        checks.fraction("mistake_rate", self.mistake_rate)
+        try:
+            self.env.make_kwargs(control_hz=self.record_hz)
+        except ValueError as error:
+            raise ValueError(f"record_hz ({self.record_hz}): {error}") from None
+        self.env.plugin().check_expert_options(self.expert, where="expert", drawn=True)
         checks.positive_int("workers", self.workers)
         if self.out_dir != MISSING:
             checks.path("out_dir", self.out_dir)
@@ -271,7 +201,9 @@ class ClosedLoopConfig:
     """Closed-loop evaluation: N seeded episodes per condition (``pilerl.evaluation``).
 
     Attributes:
-        conditions: conditions to test in; two or more ``winter_*`` are also pooled.
+        conditions: conditions and condition groups of the simulator to test in (``all``:
+            every condition; the pile loader's ``winter``: A-D); a declared group with two
+            or more tested conditions is also pooled.
         episodes: episodes per condition (0 = no closed-loop evaluation).
         seed: base seed; episode i starts from the same pose in every condition.
         workers: episode processes (``None`` = one per core).
@@ -283,9 +215,7 @@ class ClosedLoopConfig:
         render_width, render_height: video frame size [px].
     """
 
-    conditions: list[str] = field(
-        default_factory=lambda: ["summer", "winter_a", "winter_b", "winter_c", "winter_d"]
-    )
+    conditions: list[str] = field(default_factory=lambda: ["all"])
     episodes: int = 10
     seed: int = 1
     workers: int | None = None
@@ -302,14 +232,20 @@ class ClosedLoopConfig:
             checks.positive_int("evaluation.workers", self.workers)
         if self.video_conditions is not None:
             checks.names("evaluation.video_conditions", self.video_conditions)
-            unknown = [c for c in self.video_conditions if c not in self.conditions]
-            if unknown:
-                raise ValueError(
-                    f"evaluation.video_conditions: {unknown} are not evaluated; "
-                    f"evaluation.conditions are {list(self.conditions)}"
-                )
         checks.render_size("evaluation.", self.render_width, self.render_height)
         checks.video_choice("evaluation.videos", self.videos)
+
+    def condition_names(self, env: EnvConfig) -> tuple[str, ...]:
+        """The conditions tested in ``env``'s simulator (groups expanded); checks that
+        ``video_conditions`` are among them."""
+        conditions = env.plugin().resolve_conditions(self.conditions, where="evaluation.conditions")
+        unknown = [c for c in self.video_conditions or () if c not in conditions]
+        if unknown:
+            raise ValueError(
+                f"evaluation.video_conditions: {unknown} are not evaluated; "
+                f"evaluation.conditions are {list(conditions)}"
+            )
+        return conditions
 
     def plan(self, env: EnvConfig):
         """The ``EvaluationPlan`` of this config in ``env`` (its condition is replaced)."""
@@ -317,9 +253,8 @@ class ClosedLoopConfig:
 
         kwargs = env.make_kwargs()
         kwargs.pop("condition")
-        return EvaluationPlan(
-            env.simulator, kwargs, tuple(self.conditions), self.episodes, seed=self.seed
-        )
+        conditions = self.condition_names(env)
+        return EvaluationPlan(env.simulator, kwargs, conditions, self.episodes, seed=self.seed)
 
 
 @dataclass
@@ -329,16 +264,17 @@ class EvaluateConfig:
     Attributes:
         env: simulator arguments (``env.condition`` is replaced by each evaluated one).
         checkpoint: a saved actor (``best.pt`` of train_bc or finetune); ``None`` evaluates
-            the scripted operator with the ``operator`` style.
+            the simulator's nominal scripted expert.
         name: the controller's name in plots and tables (default: from the checkpoint).
-        operator: scripted operator style (used when ``checkpoint`` is ``None``).
+        expert: options of the nominal scripted expert (used when ``checkpoint`` is
+            ``None``; the pile loader's: ``OperatorStyle`` fields); ``{}``: its defaults.
         evaluation: conditions, episodes, seed, workers, videos.
     """
 
     env: EnvConfig = field(default_factory=EnvConfig)
     checkpoint: str | None = None
     name: str | None = None
-    operator: OperatorStyle = field(default_factory=OperatorStyle)
+    expert: dict[str, Any] = field(default_factory=dict)
     evaluation: ClosedLoopConfig = field(default_factory=ClosedLoopConfig)
     output_dir: str = MISSING
 
@@ -347,6 +283,9 @@ class EvaluateConfig:
             checks.path("checkpoint", self.checkpoint)
         if self.name is not None:
             checks.name("name", self.name)
+        self.evaluation.condition_names(self.env)
+        if self.checkpoint is None:
+            self.env.plugin().check_expert_options(self.expert, where="expert", drawn=False)
 
 
 @dataclass
@@ -403,6 +342,7 @@ class TrainBCConfig:
         if self.trainer is not None:
             checks.one_of("trainer", self.trainer, TRAINERS)
         checks.positive_int("ensemble_seeds", self.ensemble_seeds)
+        self.evaluation.condition_names(self.env)
         if self.ensemble_seeds > 1 and self.evaluation.episodes > 0:
             raise ValueError(
                 "evaluation.episodes: an ensemble (ensemble_seeds > 1) has no one "
@@ -434,7 +374,7 @@ def register_configs() -> None:
     store.store(name="evaluate_schema", node=EvaluateConfig)
     store.store(group="policy", name="policy_schema", node=PolicyConfig)
     store.store(group="sensors", name="sensors_schema", node=SensorsConfig)
-    store.store(group="env", name="env_schema", node=EnvConfig)
+    register_env_configs(yaml_names={p.stem for p in CONF_ENV.glob("*.yaml")})
     store.store(group="dataset", name="dataset_schema", node=DatasetConfig)
     store.store(group="logger", name="logger_schema", node=LoggerConfig)
     # imported here: the RL and pipeline schemas build on this module

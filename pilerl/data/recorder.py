@@ -1,6 +1,7 @@
 """Record demonstrations: run operators in a simulator and store schema-v1 episodes.
 
-``record_demonstrations`` draws one operator style per episode (``sample_style``), runs
+``record_demonstrations`` draws one operator per episode from the simulator's scripted
+expert (its plugin's ``scripted_expert``, given the episode's generator), runs
 the episodes in worker processes (one intra-op thread each) and appends them, in episode
 order, to an ``EpisodeStore`` from this process only (the store also takes a lock, so
 several recording processes may share one dataset).
@@ -10,10 +11,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import gymnasium as gym
 import numpy as np
@@ -22,9 +22,8 @@ from tensordict import TensorDict
 from tqdm import tqdm
 
 from pilerl.evaluation import Episode, run_episode
-from pilerl.operators import ScriptedScoopOperator, phase_index, sample_style
 from pilerl.runtime import process_pool
-from pilerl.sim import make_gym_env
+from pilerl.sim import get_simulator, make_gym_env
 
 from .schema import EpisodeMeta, SchemaError, make_episode
 from .store import EpisodeStore
@@ -38,17 +37,17 @@ class RecordingPlan:
         simulator: plugin name.
         env_kwargs: simulator arguments (condition, control_hz = the recording rate...).
         n_episodes: how many episodes.
-        seed: base seed; episode i uses env seed ``seed * 100_000 + i`` and its own style.
-        trigger_sensor: the operators' impact cue (see ``sample_style``).
-        mistake_rate: share of operators who raise the boom too early.
+        seed: base seed; episode i uses env seed ``seed * 100_000 + i`` and its own
+            operator, drawn from the generator ``numpy.random.default_rng([seed, i])``.
+        expert: options of the simulator's scripted expert (the pile loader's:
+            ``trigger_sensor``, ``mistake_rate``); ``{}``: its defaults.
     """
 
     simulator: str
     env_kwargs: dict
     n_episodes: int
     seed: int = 0
-    trigger_sensor: str = "drive_pressure"
-    mistake_rate: float = 0.28
+    expert: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.n_episodes < 1:
@@ -64,17 +63,18 @@ def record_episode(
     *,
     seed: int,
     phase: Callable[[], str] | None = None,
+    phases: tuple[str, ...] = (),
 ) -> tuple[TensorDict, dict, dict]:
     """Run one episode; returns (schema-v1 episode, reset info, final info).
 
     ``phase`` (optional) names the operator's phase at each step; it is stored as the
-    extra per-step key ``phase`` (index into ``pilerl.operators.PHASES``).
+    extra per-step key ``phase`` (index into ``phases``, the operator's ``PHASES``).
     """
     run = run_episode(env, act, seed=seed, phase=phase)
-    return episode_tensordict(run), run.start_info, run.final_info
+    return episode_tensordict(run, phases), run.start_info, run.final_info
 
 
-def episode_tensordict(run: Episode) -> TensorDict:
+def episode_tensordict(run: Episode, phases: tuple[str, ...] = ()) -> TensorDict:
     """A run as a schema-v1 episode: each row's readings before and after its action."""
     after = {k: torch.as_tensor(v, dtype=torch.float32) for k, v in run.sensors.items()}
     before = {
@@ -91,23 +91,27 @@ def episode_tensordict(run: Episode) -> TensorDict:
         truncated=run.truncated,
     )
     if run.phases:
-        episode["phase"] = torch.tensor([phase_index(p) for p in run.phases])
+        episode["phase"] = torch.tensor([phases.index(p) for p in run.phases])
     return episode
 
 
 def _record_one(plan: RecordingPlan, index: int) -> tuple[TensorDict, EpisodeMeta]:
     """Worker: record episode ``index`` of ``plan`` (runs in a child process)."""
     torch.set_num_threads(1)
-    style = sample_style(
-        np.random.default_rng([plan.seed, index]),
-        mistake_rate=plan.mistake_rate,
-        trigger_sensor=plan.trigger_sensor,
-    )
+    plugin = get_simulator(plan.simulator)
     env = make_gym_env(plan.simulator, **plan.env_kwargs)
-    operator = ScriptedScoopOperator(style, dt=env.unwrapped.dt)
+    rng = np.random.default_rng([plan.seed, index])
+    operator = plugin.make_expert(dt=float(env.unwrapped.dt), rng=rng, **plan.expert)
+    operator.reset()
     episode, start, final = record_episode(
-        env, operator.act, seed=plan.episode_seed(index), phase=lambda: operator.phase
+        env,
+        operator.act,
+        seed=plan.episode_seed(index),
+        phase=lambda: operator.phase,
+        phases=tuple(operator.PHASES),
     )
+    success, fill = plugin.score(final)
+    style = getattr(operator, "style", None)
     condition = getattr(env.unwrapped, "condition", None)
     meta = EpisodeMeta(
         rate_hz=1.0 / float(env.unwrapped.dt),
@@ -120,10 +124,10 @@ def _record_one(plan: RecordingPlan, index: int) -> tuple[TensorDict, EpisodeMet
         operator={
             "id": f"scripted-{plan.seed}-{index}",
             "kind": "scripted",
-            "style": dataclasses.asdict(style),
+            "style": dataclasses.asdict(style) if dataclasses.is_dataclass(style) else {},
         },
-        fill_fraction=float(final.get("fill_fraction", math.nan)),
-        success=bool(final.get("success", False)),
+        fill_fraction=fill,
+        success=success,
         seed=plan.episode_seed(index),
         start={
             k: float(start[k]) for k in ("start_distance_m", "approach_angle_rad") if k in start

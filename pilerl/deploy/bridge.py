@@ -71,7 +71,7 @@ def run_bridge(
 ) -> list[dict]:
     """Run ``settings.seeds`` episodes against the runtime; one record per episode."""
     env = make_gym_env(settings.simulator, **settings.env_kwargs)
-    layout = SensorLayout.from_env(env)
+    layout = SensorLayout.from_simulator(settings.simulator)
     link = MachineLink(layout, runtime_address, fault=fault, speedup=settings.speedup)
     try:
         return [_episode(env, layout, link, settings, seed) for seed in settings.seeds]

@@ -25,7 +25,7 @@ def simulator_layout(simulator: str, env_kwargs: dict) -> tuple[SensorLayout, fl
     """The simulator's sensor layout and its control rate [Hz]."""
     env = make_gym_env(simulator, **env_kwargs)
     try:
-        return SensorLayout.from_env(env), 1.0 / float(env.unwrapped.dt)
+        return SensorLayout.from_simulator(simulator), 1.0 / float(env.unwrapped.dt)
     finally:
         env.close()
 

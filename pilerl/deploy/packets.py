@@ -131,19 +131,13 @@ class SensorLayout:
         return cls(tuple(SensorChannel(**entry) for entry in data))
 
     @classmethod
-    def from_env(cls, env) -> SensorLayout:
-        """From a simulator env: its ``Dict`` observation space (order, ranges) and its
-        ``sensor_units``."""
-        base = env.unwrapped
-        units = getattr(base, "sensor_units", {})
-        channels = []
-        for name, space in base.observation_space.spaces.items():
-            channels.append(
-                SensorChannel(
-                    name, units.get(name, ""), float(space.low.min()), float(space.high.max())
-                )
-            )
-        return cls(tuple(channels))
+    def from_simulator(cls, simulator: str) -> SensorLayout:
+        """The sensors simulator ``simulator`` declares: names in observation order, units
+        and ranges (``pilerl.sim.SimulatorPlugin.sensors``)."""
+        from pilerl.sim.registry import get_simulator  # the runtime itself needs no simulator
+
+        sensors = get_simulator(simulator).sensors
+        return cls(tuple(SensorChannel(name, s.unit, s.low, s.high) for name, s in sensors.items()))
 
 
 @dataclass(frozen=True)

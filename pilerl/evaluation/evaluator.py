@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import os
 import statistics
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,22 +21,28 @@ from tensordict import TensorDict
 from tqdm import tqdm
 
 from pilerl.io import atomic_path, write_text_atomic
-from pilerl.operators import OperatorStyle, ScriptedScoopOperator
 from pilerl.runtime import process_pool
-from pilerl.sim import make_gym_env
+from pilerl.sim import DEFAULT_SIMULATOR, get_simulator, make_gym_env
 
 from .metrics import wilson_interval
 
 
 @dataclass(frozen=True)
 class ScriptedController:
-    """The scripted operator with a fixed style."""
+    """The simulator's nominal scripted expert (its plugin's ``scripted_expert``).
 
-    style: OperatorStyle = field(default_factory=OperatorStyle)
+    Attributes:
+        options: the expert's options (``{}``: its defaults).
+        name: label in plots and tables.
+        simulator: whose expert.
+    """
+
+    options: Mapping[str, object] = field(default_factory=dict)
     name: str = "scripted"
+    simulator: str = DEFAULT_SIMULATOR
 
     def build(self, dt: float):
-        return ScriptedScoopOperator(self.style, dt=dt)
+        return get_simulator(self.simulator).make_expert(dt=dt, rng=None, **dict(self.options))
 
 
 @dataclass(frozen=True)
@@ -138,7 +144,8 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
     operator.reset()
     seed = plan.seed * 100_000 + index
     obs, start = env.reset(seed=seed)
-    boom = _control_index(env, "boom")
+    plugin = get_simulator(plan.simulator)
+    boom = plugin.controls.index("boom") if "boom" in plugin.controls else None
     total, max_slip, time_to_finish, max_depth = 0.0, 0.0, math.nan, 0.0
     first_lift_s, penetration_s = math.nan, math.nan
     while True:
@@ -156,6 +163,7 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
             if info.get("scoop_finished"):
                 time_to_finish = now
             break
+    success, fill = plugin.score(info)
     return {
         "controller": controller.name,
         "condition": condition,
@@ -163,8 +171,8 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
         "seed": seed,
         "start_distance_m": float(start.get("start_distance_m", math.nan)),
         "approach_angle_rad": float(start.get("approach_angle_rad", math.nan)),
-        "fill_fraction": float(info["fill_fraction"]),
-        "success": bool(info["success"]),
+        "fill_fraction": fill,
+        "success": success,
         "scoop_finished": bool(info.get("scoop_finished", False)),
         "elapsed_s": float(info["elapsed_s"]),
         "time_to_finish_s": time_to_finish,
@@ -176,7 +184,7 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
         "penetration_s": penetration_s,
         "tipped": bool(info.get("tipped", False)),
         "failure_mode": failure_mode(
-            success=bool(info["success"]),
+            success=success,
             tipped=bool(info.get("tipped", False)),
             finished=bool(info.get("scoop_finished", False)),
             first_lift_s=first_lift_s,
@@ -215,11 +223,6 @@ def failure_mode(
     return "underfilled" if finished else "unfinished"
 
 
-def _control_index(env, name: str) -> int | None:
-    names = list(getattr(env.unwrapped, "control_names", ()))
-    return names.index(name) if name in names else None
-
-
 def evaluate(
     controller, plan: EvaluationPlan, *, workers: int | None = None, progress: bool = True
 ) -> list[dict]:
@@ -246,21 +249,25 @@ def evaluate(
     return records
 
 
-def summarize(records: Sequence[dict], *, confidence: float = 0.95) -> dict[str, dict]:
+def summarize(
+    records: Sequence[dict],
+    *,
+    confidence: float = 0.95,
+    groups: Mapping[str, Sequence[str]] | None = None,
+) -> dict[str, dict]:
     """Per condition: success rate with its Wilson interval, fill, time, slip and spill.
 
-    With two or more ``winter_*`` conditions, a pooled ``winter`` entry is added: the paper's
-    winter tests were spread over days with different ground and material (its A-D).
+    For each of ``groups`` (the simulator's declared condition groups) with two or more
+    tested conditions, a pooled entry is added: the pile loader's ``winter`` pools A-D,
+    the way the paper's winter tests were spread over days with different ground.
     """
     conditions = list(dict.fromkeys(r["condition"] for r in records))
-    groups = {c: [r for r in records if r["condition"] == c] for c in conditions}
-    winter = [c for c in conditions if c.startswith("winter_")]
-    if len(winter) >= 2 and WINTER_POOL not in groups:
-        groups[WINTER_POOL] = [r for r in records if r["condition"] in winter]
-    return {name: summarize_rows(rows, confidence) for name, rows in groups.items()}
-
-
-WINTER_POOL = "winter"
+    rows = {c: [r for r in records if r["condition"] == c] for c in conditions}
+    for group, members in (groups or {}).items():
+        tested = [c for c in members if c in rows]
+        if len(tested) >= 2 and group not in rows:
+            rows[group] = [r for r in records if r["condition"] in tested]
+    return {name: summarize_rows(group, confidence) for name, group in rows.items()}
 
 
 def summarize_rows(rows: Sequence[dict], confidence: float = 0.95) -> dict:
@@ -319,7 +326,6 @@ def write_results(records: Sequence[dict], summary: dict, out_dir: str | Path) -
 
 __all__ = [
     "FAILURE_MODES",
-    "WINTER_POOL",
     "ActorController",
     "EvaluationPlan",
     "ScriptedController",

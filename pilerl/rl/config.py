@@ -8,6 +8,7 @@ so a bad value fails with the field's name, not deep inside a training loop.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +22,6 @@ from pilerl.config.schema import EnvConfig, LoggerConfig
 ALGORITHMS = ("ppo", "td3bc")
 REGULARIZERS = ("bc_demo", "frozen_actor", "none")
 BACKENDS = ("single", "multiprocess", "ray")
-WINTER_CONDITIONS = ["winter_a", "winter_b", "winter_c", "winter_d"]
 
 
 @dataclass
@@ -117,7 +117,8 @@ class CurriculumStage:
 
     Attributes:
         frames: environment steps in this stage.
-        conditions: condition name -> relative weight (each episode draws one).
+        conditions: condition (or group: each member gets its weight) -> relative weight;
+            each episode draws one condition.
     """
 
     frames: int = MISSING
@@ -159,7 +160,9 @@ class EvaluationConfig:
     """Closed-loop evaluation during and after fine-tuning (``pilerl.evaluation``).
 
     Attributes:
-        groups: group name -> conditions pooled into one success rate.
+        groups: group name -> conditions (or groups) pooled into one success rate;
+            empty: the simulator's declared groups, then each condition in no group on its
+            own (the pile loader: ``winter`` = A-D, ``summer``).
         every_frames: evaluate every this many frames, and at frame 0 (0 = only before
             and after: no curve, ``best.pt`` is the last actor).
         episodes: episodes per condition in a periodic evaluation.
@@ -173,9 +176,7 @@ class EvaluationConfig:
         confidence: level of the Wilson intervals.
     """
 
-    groups: dict[str, list[str]] = field(
-        default_factory=lambda: {"winter": list(WINTER_CONDITIONS), "summer": ["summer"]}
-    )
+    groups: dict[str, list[str]] = field(default_factory=dict)
     every_frames: int = 20_000
     episodes: int = 5
     final_episodes: int = 10
@@ -201,7 +202,8 @@ class FinetuneConfig:
         curriculum: condition mixtures and their frames.
         reward_weights: multiplier of each named reward part reported by the simulator
             in ``info`` (``reward_fill``, ``reward_success``...); the training reward is
-            their weighted sum. Parts not named are left out.
+            their weighted sum. Parts not named are left out; empty: every reward part the
+            simulator declares, with weight 1.
         collection: collector backend and workers.
         evaluation: periodic and final closed-loop evaluation.
         seed: seeds torch, the collector envs and the replay sampling.
@@ -217,15 +219,7 @@ class FinetuneConfig:
     env: EnvConfig = field(default_factory=EnvConfig)
     algorithm: Any = MISSING  # PPOConfig | TD3BCConfig, chosen by the algorithm group
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)
-    reward_weights: dict[str, float] = field(
-        default_factory=lambda: {
-            "reward_fill": 1.0,
-            "reward_spill": 1.0,
-            "reward_time": 1.0,
-            "reward_energy": 1.0,
-            "reward_success": 1.0,
-        }
-    )
+    reward_weights: dict[str, float] = field(default_factory=dict)
     collection: CollectionConfig = field(default_factory=CollectionConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     seed: int = 0
@@ -239,6 +233,46 @@ class FinetuneConfig:
         # when it is finally used (``finetune`` validates again)
         if self.algorithm is not MISSING and self.algorithm != MISSING:
             validate_finetune_config(self, inputs_exist=False)
+
+
+def resolve_simulator_words(config: FinetuneConfig) -> FinetuneConfig:
+    """``config`` with the simulator's words filled in: curriculum groups expanded to
+    conditions, ``evaluation.groups`` and ``reward_weights`` defaulted from the simulator's
+    declaration (see their attributes). Unknown names fail listing the known ones."""
+    stages, groups, weights = _simulator_words(config)
+    return dataclasses.replace(
+        config,
+        curriculum=dataclasses.replace(config.curriculum, stages=stages),
+        evaluation=dataclasses.replace(config.evaluation, groups=groups),
+        reward_weights=weights,
+    )
+
+
+def _simulator_words(
+    config: FinetuneConfig,
+) -> tuple[list[CurriculumStage], dict[str, list[str]], dict[str, float]]:
+    plugin = config.env.plugin()
+    stages = [
+        dataclasses.replace(
+            stage,
+            conditions=plugin.resolve_mixture(
+                stage.conditions, where=f"curriculum.stages[{i}].conditions"
+            ),
+        )
+        for i, stage in enumerate(config.curriculum.stages)
+    ]
+    groups = {
+        group: list(plugin.resolve_conditions(members, where=f"evaluation.groups.{group}"))
+        for group, members in (config.evaluation.groups or plugin.pooled_groups()).items()
+    }
+    weights = dict(config.reward_weights) or dict.fromkeys(plugin.reward_parts, 1.0)
+    unknown = sorted(set(weights) - set(plugin.reward_parts))
+    if unknown:
+        raise ValueError(
+            f"reward_weights: simulator {plugin.name!r} reports no reward part(s) {unknown}; "
+            f"its parts: {list(plugin.reward_parts)}"
+        )
+    return stages, groups, weights
 
 
 def uses_demos(config: FinetuneConfig) -> bool:
@@ -364,8 +398,6 @@ def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = Tru
             _non_negative(f"curriculum.stages[{i}].conditions.{condition}", weight)
         if sum(stage.conditions.values()) <= 0:
             raise ValueError(f"curriculum.stages[{i}].conditions: weights sum to 0")
-    if not config.reward_weights:
-        raise ValueError("reward_weights: name at least one reward part")
     for part, weight in config.reward_weights.items():
         if not (isinstance(weight, (int, float)) and math.isfinite(weight)):
             raise ValueError(f"reward_weights.{part}: must be finite, got {weight!r}")
@@ -389,7 +421,7 @@ def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = Tru
             "remote collector fills an equal share of a batch)"
         )
     evaluation = config.evaluation
-    if not evaluation.groups or not all(evaluation.groups.values()):
+    if not all(evaluation.groups.values()):
         raise ValueError(f"evaluation.groups: each group needs conditions, got {evaluation.groups}")
     _non_negative("evaluation.every_frames", evaluation.every_frames)
     _positive("evaluation.episodes", evaluation.episodes)
@@ -397,11 +429,12 @@ def validate_finetune_config(config: FinetuneConfig, *, inputs_exist: bool = Tru
     _positive("evaluation.workers", evaluation.workers)
     if not 0 < evaluation.confidence < 1:
         raise ValueError(f"evaluation.confidence: must lie in (0, 1), got {evaluation.confidence}")
-    unknown = sorted(set(evaluation.video_conditions) - set(evaluation.groups))
+    _, groups, _ = _simulator_words(config)
+    unknown = sorted(set(evaluation.video_conditions) - set(groups))
     if unknown:
         raise ValueError(
             f"evaluation.video_conditions: groups {unknown} are not in evaluation.groups "
-            f"{sorted(evaluation.groups)}"
+            f"{sorted(groups)}"
         )
     _non_negative("evaluation.seed", evaluation.seed)
     _non_negative("evaluation.final_seed", evaluation.final_seed)

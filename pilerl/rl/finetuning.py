@@ -57,7 +57,13 @@ from pilerl.loggers import make_logger
 from pilerl.policies import CheckpointError, actor_policy, load_actor, save_actor
 
 from .collection import make_collector, restart_collection, sync_weights
-from .config import FinetuneConfig, PPOConfig, uses_demos, validate_finetune_config
+from .config import (
+    FinetuneConfig,
+    PPOConfig,
+    resolve_simulator_words,
+    uses_demos,
+    validate_finetune_config,
+)
 from .envs import TrainingEnvFactory
 from .evaluation import evaluate_groups, plot_success_curve, pool_groups
 from .ppo import PPOLearner
@@ -604,6 +610,7 @@ def finetune(config: FinetuneConfig, run_dir: str | Path, *, progress: bool = Tr
     """
     validate_finetune_config(config, inputs_exist=False)
     _check_inputs(config)
+    config = resolve_simulator_words(config)  # groups, mixtures and reward parts by name
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     run = _Run(config, run_dir, progress=progress)
