@@ -44,12 +44,10 @@ def main(cfg: DictConfig) -> None:
     envs = {
         condition: make_gym_env(
             config.env.simulator,
-            **config.env.make_kwargs(
-                condition=condition,
-                render_mode="rgb_array" if video else None,
-                render_size=(config.render_height, config.render_width),
-                camera=config.camera,
-            ),
+            **config.env.make_kwargs(condition=condition),
+            render_mode="rgb_array" if video else None,
+            render_size=(config.render_height, config.render_width),
+            camera=config.camera,
         )
         for condition in config.conditions
     }

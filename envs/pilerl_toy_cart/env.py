@@ -11,6 +11,8 @@ from .options import CONDITIONS, ToyCartOptions
 MAX_FORCE_N = 20.0
 TARGET_M = 1.0
 EPISODE_SECONDS = 5.0
+DEFAULT_CONTROL_HZ = 20.0
+MAX_STEPS = round(EPISODE_SECONDS * DEFAULT_CONTROL_HZ)  # steps of an episode at 20 Hz
 STOP_TOLERANCE = 0.05  # |position error| [m] and |velocity| [m/s] that count as stopped
 
 
@@ -27,7 +29,7 @@ class ToyCartEnv(gym.Env):
 
     metadata = {"render_modes": [], "render_fps": 20}
 
-    def __init__(self, condition: str = "nominal", control_hz: float = 20.0) -> None:
+    def __init__(self, condition: str = "nominal", control_hz: float = DEFAULT_CONTROL_HZ) -> None:
         options = ToyCartOptions(condition=condition, control_hz=control_hz)
         self.condition = options.condition
         self.mass_kg, self.opposing_force_n = CONDITIONS[options.condition]

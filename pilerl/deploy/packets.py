@@ -33,6 +33,7 @@ import json
 import math
 import struct
 import zlib
+from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
 
@@ -131,13 +132,18 @@ class SensorLayout:
         return cls(tuple(SensorChannel(**entry) for entry in data))
 
     @classmethod
-    def from_simulator(cls, simulator: str) -> SensorLayout:
-        """The sensors simulator ``simulator`` declares: names in observation order, units
-        and ranges (``pilerl.sim.SimulatorPlugin.sensors``)."""
-        from pilerl.sim.registry import get_simulator  # the runtime itself needs no simulator
-
-        sensors = get_simulator(simulator).sensors
-        return cls(tuple(SensorChannel(name, s.unit, s.low, s.high) for name, s in sensors.items()))
+    def from_env(cls, env, units: Mapping[str, str]) -> SensorLayout:
+        """From a simulator env: its ``Dict`` observation space (order, ranges) and the
+        sensor ``units`` its plugin declares (``SimulatorPlugin.sensor_units``)."""
+        base = env.unwrapped
+        channels = []
+        for name, space in base.observation_space.spaces.items():
+            channels.append(
+                SensorChannel(
+                    name, units.get(name, ""), float(space.low.min()), float(space.high.max())
+                )
+            )
+        return cls(tuple(channels))
 
 
 @dataclass(frozen=True)

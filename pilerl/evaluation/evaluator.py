@@ -148,13 +148,14 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
     boom = plugin.controls.index("boom") if "boom" in plugin.controls else None
     total, max_slip, time_to_finish, max_depth = 0.0, 0.0, math.nan, 0.0
     first_lift_s, penetration_s = math.nan, math.nan
+    dt, now = float(env.unwrapped.dt), 0.0  # simulated time [s], summed like the simulator
     while True:
         action = operator.act(obs)
         obs, reward, terminated, truncated, info = env.step(action)
         total += float(reward)
         max_slip = max(max_slip, float(info.get("wheel_slip_m_s", 0.0)))
         max_depth = max(max_depth, float(info.get("cutting_depth_m", 0.0)))
-        now = float(info["elapsed_s"])
+        now += dt
         if boom is not None and math.isnan(first_lift_s) and action[boom] > LIFT_COMMAND:
             first_lift_s = now
         if math.isnan(penetration_s) and max_depth >= PENETRATION_M:
@@ -174,7 +175,7 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
         "fill_fraction": fill,
         "success": success,
         "scoop_finished": bool(info.get("scoop_finished", False)),
-        "elapsed_s": float(info["elapsed_s"]),
+        "elapsed_s": now,
         "time_to_finish_s": time_to_finish,
         "max_wheel_slip_m_s": max_slip,
         "spilled_kg": float(info.get("spilled_kg", 0.0)),

@@ -233,6 +233,8 @@ class FinetuneConfig:
         # when it is finally used (``finetune`` validates again)
         if self.algorithm is not MISSING and self.algorithm != MISSING:
             validate_finetune_config(self, inputs_exist=False)
+            # the simulator's words in place of empty defaults (see the attributes)
+            _, self.evaluation.groups, self.reward_weights = _simulator_words(self)
 
 
 def resolve_simulator_words(config: FinetuneConfig) -> FinetuneConfig:

@@ -3,7 +3,8 @@
 A group pools several conditions into one success rate with a Wilson interval (by
 default the simulator's declared groups: the pile loader's "winter" = A-D, the way the
 paper's winter tests mixed days). Episodes come from
-``pilerl.evaluation.evaluator.evaluate`` on a saved actor, so fine-tuned and cloned actors are compared on the same seeded starts.
+``pilerl.evaluation.evaluator.evaluate`` on a saved actor, so fine-tuned and cloned
+actors are compared on the same seeded starts.
 """
 
 from __future__ import annotations

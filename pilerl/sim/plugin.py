@@ -55,8 +55,8 @@ class SimulatorPlugin:
         name: registry name (``pile_loader``), what configs say (``env=pile_loader``).
         gym_id: Gymnasium id it is registered under, ``namespace/Name-vN``.
         entry_point: ``module:Class`` of the ``gymnasium.Env``; imported only on make.
-        sensors: sensor name -> ``SensorSpec`` (unit, low, high), in observation order; the
-            env's ``Dict`` observation has exactly these keys.
+        sensors: sensor name -> ``SensorSpec`` (unit, low, high); the env's ``Dict``
+            observation has exactly these keys (in Gymnasium's order, sorted by name).
         controls: names of the action's components, in order.
         conditions: condition name -> one-line description; the env's constructor takes
             ``condition=<name>``.
@@ -140,7 +140,7 @@ class SimulatorPlugin:
     # ------------------------------------------------------------------ words
     @property
     def sensor_units(self) -> dict[str, str]:
-        """Sensor name -> unit, in observation order (what a dataset records)."""
+        """Sensor name -> unit, in declared order (what a dataset records)."""
         return {name: spec.unit for name, spec in self.sensors.items()}
 
     def groups(self) -> dict[str, tuple[str, ...]]:
@@ -159,8 +159,8 @@ class SimulatorPlugin:
                 members = groups[name]
             else:
                 raise ValueError(
-                    f"{where}: simulator {self.name!r} has no condition or group {name!r}; "
-                    f"conditions {list(self.conditions)}, groups {list(groups)}"
+                    f"{where}: unknown condition {name!r} (no condition or group of simulator "
+                    f"{self.name!r}); conditions {list(self.conditions)}, groups {list(groups)}"
                 )
             resolved.extend(m for m in members if m not in resolved)
         return tuple(resolved)

@@ -65,11 +65,13 @@ class EnvConfig:
 
     def make_kwargs(self, **overrides) -> dict[str, Any]:
         """Keyword arguments for ``pilerl.sim.make_gym_env`` (simulator name excluded):
-        these options, then ``overrides`` (e.g. ``control_hz=record_hz``), each checked
-        against the options the simulator declares; lists become tuples."""
+        every declared option (its default unless set here), then ``overrides`` (e.g.
+        ``control_hz=record_hz``), each checked against the options the simulator
+        declares; lists become tuples."""
         plugin = self.plugin()
         plugin.check_options(overrides, where="env")
-        kwargs = {**self.options(), **overrides}
+        defaults = dataclasses.asdict(plugin.options_class()())
+        kwargs = {**defaults, **self.options(), **overrides}
         if overrides:
             check_options(plugin, kwargs)
         return {k: tuple(v) if isinstance(v, list) else v for k, v in kwargs.items()}
