@@ -70,7 +70,7 @@ def main(cfg: DictConfig) -> float:
         video_conditions=config.evaluation.video_conditions,
         render_size=(config.evaluation.render_height, config.evaluation.render_width),
     )
-    per_condition = [row for name, row in summary.items() if name in config.evaluation.conditions]
+    per_condition = [row for name, row in summary.items() if name in plan.conditions]
     success_rate = sum(r["successes"] for r in per_condition) / sum(
         r["episodes"] for r in per_condition
     )

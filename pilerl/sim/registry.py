@@ -45,6 +45,11 @@ def _plugins() -> dict[str, SimulatorPlugin]:
     return found
 
 
+def refresh_simulators() -> None:
+    """Read the installed plugins again (after installing one into a running process)."""
+    _plugins.cache_clear()
+
+
 def available_simulators() -> list[str]:
     """Names of all installed simulator plugins, sorted."""
     return sorted(_plugins())
