@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -94,3 +97,35 @@ def test_native_batched_env_resets_only_the_finished_simulators():
     done = rollout["next", "done"].squeeze(-1)
     assert done[:, 99].all() and not done[:, :99].any()
     assert rollout.batch_size == (2, 150)
+
+
+def test_importing_a_plugin_is_cheap_and_needs_nothing_from_pilerl():
+    """The declarations name the env, options and expert as strings: nothing heavy loads."""
+    code = (
+        "import sys, pilerl_pile_loader, pilerl_toy_cart\n"
+        "heavy = [m for m in sys.modules if m.split('.')[0] in "
+        "('pilerl', 'mujoco', 'torch', 'gymnasium')]\n"
+        "assert not heavy, heavy\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+
+
+@pytest.mark.parametrize("name", ["pile_loader", "toy_cart"])
+def test_condition_groups_and_mixtures_resolve_by_name(name):
+    plugin = get_simulator(name)
+    everything = plugin.resolve_conditions(["all"], where="test")
+    assert everything == tuple(plugin.conditions)
+    for group, members in plugin.condition_groups.items():
+        assert plugin.resolve_conditions([group], where="test") == members
+        assert plugin.resolve_mixture({group: 2.0}, where="test") == dict.fromkeys(members, 2.0)
+    with pytest.raises(ValueError, match="unknown condition 'spring'.*conditions"):
+        plugin.resolve_conditions(["spring"], where="test")
+    with pytest.raises(ValueError, match="weighted twice"):
+        plugin.resolve_mixture({"all": 1.0, everything[0]: 1.0}, where="test")
+
+
+def test_the_pile_loaders_winter_group_is_a_to_d_and_pools_in_summaries():
+    plugin = get_simulator("pile_loader")
+    assert plugin.condition_groups == {"winter": ("winter_a", "winter_b", "winter_c", "winter_d")}
+    assert plugin.pooled_groups() == {**plugin.condition_groups, "summer": ("summer",)}
+    assert plugin.fill_key == "fill_fraction" and "reward_success" in plugin.reward_parts
