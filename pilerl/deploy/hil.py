@@ -73,7 +73,9 @@ def run_hil(
             f" a watchdog age of {runtime.max_sensor_age_s} s would call every gap stale"
         )
     if isinstance(controller, str | Path):
-        controller = load_controller(controller, sensors=layout.names, control_hz=control_hz)
+        controller = load_controller(
+            controller, sensors=layout.names, control_hz=control_hz, simulator=bridge.simulator
+        )
     deployed = controller
     kind = runtime_kind(deployed.name)
     server = ControlRuntime(deployed, layout, runtime, run_dir=run_dir, runtime_kind=kind)
