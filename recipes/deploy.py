@@ -41,7 +41,12 @@ def main(cfg: DictConfig) -> None:
             OmegaConf.merge(OmegaConf.structured(DeployConfig), cfg)
         )
         layout, control_hz = simulator_layout(config.env.simulator, config.env.make_kwargs())
-        controller = load_controller(config.controller, sensors=layout.names, control_hz=control_hz)
+        controller = load_controller(
+            config.controller,
+            sensors=layout.names,
+            control_hz=control_hz,
+            simulator=config.env.simulator,
+        )
         if Path(config.controller).suffix in (".pt", ".onnx"):  # they know their training rate
             warn_if_other_control_rate(config.controller, control_hz)
     except (ValueError, FileNotFoundError) as error:

@@ -47,7 +47,9 @@ def main(cfg: DictConfig) -> float:
     videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
     # --- the controller: a checkpoint (loaded once here, so a bad file fails now) or scripted
     if checkpoint is None:
-        controller = ScriptedController(config.operator, name=config.name or "scripted")
+        controller = ScriptedController(
+            config.expert, name=config.name or "scripted", simulator=config.env.simulator
+        )
     else:
         load_actor(checkpoint)
         name = config.name or checkpoint.resolve().parent.name
@@ -69,7 +71,7 @@ def main(cfg: DictConfig) -> float:
         video_conditions=config.evaluation.video_conditions,
         render_size=(config.evaluation.render_height, config.evaluation.render_width),
     )
-    per_condition = [row for name, row in summary.items() if name in config.evaluation.conditions]
+    per_condition = [row for name, row in summary.items() if name in plan.conditions]
     success_rate = sum(r["successes"] for r in per_condition) / sum(
         r["episodes"] for r in per_condition
     )

@@ -36,7 +36,6 @@ from pilerl.reports.pipeline import write_pipeline_report
 from pilerl.rl import finetune
 from pilerl.runs import begin_run, finish_run
 from pilerl.runtime import limit_threads
-from pilerl.sim import make_gym_env
 from pilerl.sweeps import is_done, mark_done
 from pilerl.training import BCSettings, epochs_for_steps, train_bc
 from pilerl.training.plots import plot_losses
@@ -148,22 +147,20 @@ def record(
 ) -> EpisodeStore:
     """Scripted demonstrations in ``condition`` (resumes a partly recorded store)."""
     env_kwargs = config.env.make_kwargs(condition=condition, control_hz=config.demos.record_hz)
-    probe = make_gym_env(config.env.simulator, **env_kwargs).unwrapped
+    plugin = config.env.plugin()
     store = EpisodeStore.create(
         root / condition,
-        sensors=probe.sensor_units,
-        controls=list(probe.control_names),
+        sensors=plugin.sensor_units,
+        controls=list(plugin.controls),
         description=f"scripted demonstrations, {condition}, {config.demos.record_hz:g} Hz",
         exist_ok=True,
     )
-    probe.close()
     plan = RecordingPlan(
         config.env.simulator,
         env_kwargs,
         n_episodes=episodes,
         seed=config.demos.seed,
-        trigger_sensor=trigger,
-        mistake_rate=config.demos.mistake_rate,
+        expert={"trigger_sensor": trigger, "mistake_rate": config.demos.mistake_rate},
     )
     record_demonstrations(store, plan, workers=config.demos.workers)
     return store

@@ -33,24 +33,22 @@ def main(cfg: DictConfig) -> None:
     config: RecordConfig = OmegaConf.to_object(cfg)
     env_kwargs = config.env.make_kwargs(control_hz=config.record_hz)
 
-    # --- fail early: build one env (checks every argument) and read its sensor units
-    probe = make_gym_env(config.env.simulator, **env_kwargs).unwrapped
+    make_gym_env(config.env.simulator, **env_kwargs).close()  # fail early: checks every option
+    plugin = config.env.plugin()
     plan = RecordingPlan(
         config.env.simulator,
         env_kwargs,
         n_episodes=config.n_episodes,
         seed=config.seed,
-        trigger_sensor=config.trigger_sensor,
-        mistake_rate=config.mistake_rate,
+        expert=config.expert,
     )
     store = EpisodeStore.create(
         config.out_dir,
-        sensors=probe.sensor_units,
-        controls=list(probe.control_names),
-        description=f"scripted demonstrations, {config.env.condition}, {config.record_hz} Hz",
+        sensors=plugin.sensor_units,
+        controls=list(plugin.controls),
+        description=f"scripted demonstrations, {env_kwargs['condition']}, {config.record_hz} Hz",
         exist_ok=True,
     )
-    probe.close()
     plan_settings = OmegaConf.to_container(cfg, resolve=True)
     plan_settings.pop("out_dir")  # the store itself
     begin_run(config.out_dir, plan_settings, growable=["n_episodes"])

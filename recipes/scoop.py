@@ -46,12 +46,12 @@ def main(cfg: DictConfig) -> None:
     envs = {
         condition: make_episode_env(
             config.env.simulator,
-            config.env.make_kwargs(
-                condition=condition,
-                render_mode="rgb_array" if video else None,
-                render_size=(config.render_height, config.render_width),
-                camera=config.camera,
-            ),
+            {
+                **config.env.make_kwargs(condition=condition),
+                "render_mode": "rgb_array" if video else None,
+                "render_size": (config.render_height, config.render_width),
+                "camera": config.camera,
+            },
         )
         for condition in config.conditions
     }

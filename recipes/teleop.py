@@ -19,7 +19,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import register_configs
 from pilerl.data import EpisodeMeta, EpisodeStore, record_episode
-from pilerl.data.recorder import RECORDED_INFO
+from pilerl.data.recorder import recorded_info
 from pilerl.data.settings import TeleopConfig
 from pilerl.operators.keyboard import KeyboardOperator, close_viewer, key_bindings_text
 from pilerl.runtime import limit_threads
@@ -40,12 +40,16 @@ def main(cfg: DictConfig) -> None:
         )
     import mujoco.viewer  # imported here: it opens a window
 
-    env = make_rollout_env(config.env.simulator, config.env.make_kwargs(), info_keys=RECORDED_INFO)
+    env = make_rollout_env(
+        config.env.simulator,
+        config.env.make_kwargs(),
+        info_keys=recorded_info(config.env.simulator),
+    )
     sim = env.simulators[0].unwrapped
     store = EpisodeStore.create(
         config.out_dir,
-        sensors=sim.sensor_units,
-        controls=list(sim.control_names),
+        sensors=config.env.plugin().sensor_units,
+        controls=list(config.env.plugin().controls),
         exist_ok=True,
         description="keyboard teleoperation",
     )

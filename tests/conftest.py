@@ -34,7 +34,7 @@ def datasets(tmp_path_factory):
             {"condition": condition, "control_hz": 20.0},
             n_episodes=n,
             seed=5,
-            trigger_sensor="telescope_pressure",
+            expert={"trigger_sensor": "telescope_pressure"},
         )
         record_demonstrations(store, plan, workers=1, progress=False)
         stores[name] = store

@@ -44,10 +44,11 @@ def schema_of(path: Path):
         group, name = PACKAGES[package]
     else:
         names = [d for d in content.get("defaults", []) if isinstance(d, str)]
-        schemas = [d for d in names if d.endswith("_schema")]
+        schemas = [d for d in names if d.split("@")[0].endswith("_schema")]
         if not schemas:
             return None
-        name = schemas[0]
+        name, _, placed = schemas[0].partition("@")  # ``pile_loader_schema@env``: env's
+        group = placed or group
     repository = ConfigStore.instance().repo
     node = repository[group] if group else repository
     return OmegaConf.structured(node[f"{name}.yaml"].node)

@@ -62,7 +62,6 @@ FIELDS = {
     "record": {
         "n_episodes": POSITIVE_INT,
         "record_hz": POSITIVE,
-        "mistake_rate": FRACTION,
         "workers": POSITIVE_INT,
         "seed": NON_NEGATIVE_INT,
         **ENV_FIELDS,
@@ -103,7 +102,6 @@ FIELDS = {
         "evaluation.every_frames": NON_NEGATIVE_INT,
         "checkpoint_every_frames": POSITIVE_INT,
         "time_budget_minutes": NON_NEGATIVE,
-        "reward_weights.reward_fill": NON_NEGATIVE,
         "seed": NON_NEGATIVE_INT,
         **ENV_FIELDS,
     },
@@ -133,7 +131,10 @@ FIELDS = {
 # --- written out: unknown names, empty lists, impossible combinations
 # (config, overrides, text the error must contain)
 COMBINATIONS = [
-    ("record", ["trigger_sensor=boom_angle"], "trigger_sensor"),
+    ("record", ["+expert.trigger_sensor=boom_angle"], "trigger_sensor"),
+    *[("record", [f"+expert.mistake_rate={value}"], "mistake_rate") for value in FRACTION],
+    ("record", ["+expert.no_such_option=1"], "no_such_option"),
+    ("record", ["env=toy_cart", "record_hz=5000"], "record_hz"),
     ("record", ["env.simulator=no_such_sim"], "env.simulator"),
     ("record", ["env.physics_hz=100", "record_hz=500"], "record_hz"),
     ("record", ["env.start_distance_range_m=[5.0,1.0]"], "env.start_distance_range_m"),
@@ -185,7 +186,7 @@ COMBINATIONS = [
     ("finetune", ["algorithm=td3bc", "algorithm.buffer_size=10"], "algorithm.batch_size"),
     (
         "finetune",
-        ["algorithm=td3bc", "demos=/tmp/never-read", "reward_weights.reward_time=2.0"],
+        ["algorithm=td3bc", "demos=/tmp/never-read", "+reward_weights.reward_time=2.0"],
         "reward_weights",
     ),
     ("finetune", ["collection.backend=mpi"], "collection.backend"),
@@ -195,12 +196,18 @@ COMBINATIONS = [
         "collection.workers",
     ),
     ("finetune", ["evaluation.confidence=1.5"], "evaluation.confidence"),
-    ("finetune", ["evaluation.groups.winter=[]"], "evaluation.groups"),
+    ("finetune", ["+evaluation.groups.winter=[]"], "evaluation.groups"),
     ("finetune", ["+evaluation.video_conditions={spring: summer}"], "video_conditions"),
     ("finetune", ["curriculum.stages=[]"], "curriculum.stages"),
     ("finetune", ["curriculum.stages=[{frames: 0, conditions: {summer: 1}}]"], "frames"),
     ("finetune", ["curriculum.stages=[{frames: 10, conditions: {summer: 0}}]"], "sum to 0"),
-    ("finetune", ["reward_weights.reward_time=inf"], "reward_weights.reward_time"),
+    ("finetune", ["+reward_weights.reward_time=inf"], "reward_weights.reward_time"),
+    *[
+        ("finetune", [f"+reward_weights.reward_fill={value}"], "reward_weights.reward_fill")
+        for value in NON_NEGATIVE
+    ],
+    ("finetune", ["+reward_weights.reward_colour=1.0"], "reward_weights"),
+    ("finetune", ["curriculum.stages=[{frames: 10, conditions: {spring: 1}}]"], "spring"),
     ("pipeline", ["policy=rf"], "policy"),
     ("pipeline", ["policy=nnet", "+policy.options.hidden=4000"], "Levenberg-Marquardt"),
     ("pipeline", ["demos.record_hz=1000"], "demos.record_hz"),

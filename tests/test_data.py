@@ -284,7 +284,7 @@ def test_resuming_a_recording_with_another_plan_is_refused(tmp_path):
         dataclasses.replace(plan, env_kwargs={"condition": "winter_c", "control_hz": 20.0}),
         dataclasses.replace(plan, env_kwargs={"condition": "summer", "control_hz": 500.0}),
         dataclasses.replace(plan, seed=2),
-        dataclasses.replace(plan, trigger_sensor="telescope_pressure"),
+        dataclasses.replace(plan, expert={"trigger_sensor": "telescope_pressure"}),
     ):
         with pytest.raises(SchemaError, match="was recorded with another plan"):
             claim_plan(EpisodeStore.open(tmp_path / "demos"), changed)

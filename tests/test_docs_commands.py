@@ -57,6 +57,10 @@ TINY = {
 }
 # options appended to a ``python -m`` module's command (argparse: the last one counts)
 TINY_MODULES = {"pilerl.deploy faults": ["--cases", "1"]}
+PLUGIN_TEST = (
+    "tests/test_third_party_plugin.py installs the documented plugin into a temporary "
+    "directory and runs these commands on it"
+)
 # command prefix -> why it is not run by this test
 NOT_RUN = {
     "bash scripts/setup.sh": "the README's front door: CI (.ci/run) runs both as written",
@@ -67,6 +71,13 @@ NOT_RUN = {
     "tests/test_deploy_runtime.py runs it against a bridge",
     "python -m pilerl.deploy bridge": "the second terminal of the runtime above",
     "python -m pilerl.deploy rearm": "talks to a running runtime (tests/test_deploy_runtime.py)",
+    "pip install -e ./my_heater": PLUGIN_TEST,
+    'python -c "from pilerl.sim import available_simulators': PLUGIN_TEST,
+    "python recipes/record.py env=my_heater": PLUGIN_TEST,
+    "python recipes/build_dataset.py dataset=d_i source=data/demos/heater": PLUGIN_TEST,
+    "python recipes/train_bc.py env=my_heater": PLUGIN_TEST,
+    "python recipes/evaluate.py env=my_heater": PLUGIN_TEST,
+    "python recipes/finetune.py env=my_heater": PLUGIN_TEST,
     "python recipes/deploy.py controller=outputs/deploy_try/nnetv2.onnx env.control_hz=3": (
         "serves until a machine connects; the mode=hil commands run the same runtime"
     ),
@@ -133,6 +144,7 @@ def not_run_reason(command: Command) -> str | None:
 def run_command(command: Command) -> None:
     """Run one documented command in this process, with ``TINY`` budgets for recipes."""
     if command.writes is not None:
+        Path(command.writes).parent.mkdir(parents=True, exist_ok=True)
         Path(command.writes).write_text(command.text)
         return
     argv = command.argv

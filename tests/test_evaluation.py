@@ -15,7 +15,6 @@ from pilerl.evaluation.evaluator import (
     write_results,
 )
 from pilerl.evaluation.metrics import wilson_interval
-from pilerl.operators import OperatorStyle
 
 
 @pytest.mark.parametrize(
@@ -57,7 +56,7 @@ def test_evaluation_is_deterministic_and_independent_of_workers():
 
 def test_a_sensible_operator_scores_high_in_summer_and_results_are_written(tmp_path):
     plan = EvaluationPlan("pile_loader", {}, ("summer",), episodes=4, seed=0)
-    records = evaluate(ScriptedController(OperatorStyle()), plan, workers=2, progress=False)
+    records = evaluate(ScriptedController(), plan, workers=2, progress=False)
     summary = summarize(records)["summer"]
     assert summary["successes"] >= 3 and summary["success_low"] > 0.2
     assert summary["fill_mean"] >= 0.5 and summary["time_to_fill_s_mean"] > 0

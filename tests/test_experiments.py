@@ -23,6 +23,7 @@ from pilerl.policies import controller_inputs
 from pilerl.reports import closed_loop_cells, paper_numbers
 from pilerl.reports.paper import build_report, check_claim
 from pilerl.reports.results import Cell, dataset_name
+from pilerl.sim import get_simulator
 from pilerl.training import epochs_for_steps
 
 
@@ -48,11 +49,13 @@ def test_winter_conditions_are_also_pooled():
         record("winter_c", 0, False, 0.3),
         record("winter_c", 1, False, 0.1),
     ]
-    summary = summarize(records)
+    groups = get_simulator("pile_loader").condition_groups
+    summary = summarize(records, groups=groups)
     assert list(summary) == ["summer", "winter_a", "winter_c", "winter"]
     assert summary["winter"]["successes"] == 1 and summary["winter"]["episodes"] == 4
     assert summary["winter"]["fill_mean"] == pytest.approx(0.325)
-    assert "winter" not in summarize(records[:3])  # one winter condition: nothing to pool
+    # one winter condition: nothing to pool
+    assert "winter" not in summarize(records[:3], groups=groups)
 
 
 @pytest.mark.parametrize(
@@ -79,10 +82,8 @@ def test_failure_modes_in_the_papers_words(success, tipped, finished, lift_s, pe
 
 
 def test_a_scripted_early_lift_is_recorded_as_an_early_boom_rise():
-    from pilerl.operators import OperatorStyle
-
     plan = EvaluationPlan("pile_loader", {}, ("summer",), episodes=1, seed=0)
-    early = ScriptedController(OperatorStyle(early_boom_rise_s=0.5), name="early")
+    early = ScriptedController({"early_boom_rise_s": 0.5}, name="early")
     (row,) = evaluate(early, plan, workers=1, progress=False)
     assert row["failure_mode"] == "early_boom_rise" and row["first_lift_s"] < 2.0
     (row,) = evaluate(ScriptedController(), plan, workers=1, progress=False)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -44,13 +47,24 @@ def test_toy_plugin_runs_through_the_same_api():
     check_env_specs(make_torchrl_env("toy_cart", seed=0))
 
 
+VALID = {
+    "name": "x",
+    "gym_id": "ns/X-v0",
+    "entry_point": "m:C",
+    "sensors": {"position": {"unit": "m", "low": -1.0, "high": 1.0}},
+    "controls": ["force"],
+    "conditions": {"nominal": "the only one"},
+    "options": "m:Options",
+}
+
+
 @pytest.mark.parametrize(
     ("declaration", "message"),
     [
-        ({"name": "x", "gym_id": "bad id", "entry_point": "m:C"}, "gym_id"),
-        ({"name": "x", "gym_id": "ns/X-v0", "entry_point": "no colon"}, "entry_point"),
-        ({"name": "x", "gym_id": "ns/X-v0"}, "missing fields ['entry_point']"),
-        ({"name": "x", "gym_id": "ns/X-v0", "entry_point": "m:C", "colour": 1}, "unknown"),
+        ({**VALID, "gym_id": "bad id"}, "gym_id"),
+        ({**VALID, "entry_point": "no colon"}, "entry_point"),
+        ({k: v for k, v in VALID.items() if k != "entry_point"}, "missing fields ['entry_point']"),
+        ({**VALID, "colour": 1}, "unknown"),
         (["not", "a", "mapping"], "must be a mapping"),
     ],
 )
@@ -83,3 +97,35 @@ def test_native_batched_env_resets_only_the_finished_simulators():
     done = rollout["next", "done"].squeeze(-1)
     assert done[:, 99].all() and not done[:, :99].any()
     assert rollout.batch_size == (2, 150)
+
+
+def test_importing_a_plugin_is_cheap_and_needs_nothing_from_pilerl():
+    """The declarations name the env, options and expert as strings: nothing heavy loads."""
+    code = (
+        "import sys, pilerl_pile_loader, pilerl_toy_cart\n"
+        "heavy = [m for m in sys.modules if m.split('.')[0] in "
+        "('pilerl', 'mujoco', 'torch', 'gymnasium')]\n"
+        "assert not heavy, heavy\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+
+
+@pytest.mark.parametrize("name", ["pile_loader", "toy_cart"])
+def test_condition_groups_and_mixtures_resolve_by_name(name):
+    plugin = get_simulator(name)
+    everything = plugin.resolve_conditions(["all"], where="test")
+    assert everything == tuple(plugin.conditions)
+    for group, members in plugin.condition_groups.items():
+        assert plugin.resolve_conditions([group], where="test") == members
+        assert plugin.resolve_mixture({group: 2.0}, where="test") == dict.fromkeys(members, 2.0)
+    with pytest.raises(ValueError, match="unknown condition 'spring'.*conditions"):
+        plugin.resolve_conditions(["spring"], where="test")
+    with pytest.raises(ValueError, match="weighted twice"):
+        plugin.resolve_mixture({"all": 1.0, everything[0]: 1.0}, where="test")
+
+
+def test_the_pile_loaders_winter_group_is_a_to_d_and_pools_in_summaries():
+    plugin = get_simulator("pile_loader")
+    assert plugin.condition_groups == {"winter": ("winter_a", "winter_b", "winter_c", "winter_d")}
+    assert plugin.pooled_groups() == {**plugin.condition_groups, "summer": ("summer",)}
+    assert plugin.fill_key == "fill_fraction" and "reward_success" in plugin.reward_parts

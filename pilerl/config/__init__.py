@@ -3,22 +3,23 @@
 Each room owns its settings (a dataclass checked in ``__post_init__``):
 ``pilerl.data.settings``, ``pilerl.policies.settings``, ``pilerl.evaluation.settings``,
 ``pilerl.training.settings``, ``pilerl.rl.config``, ``pilerl.deploy.config`` and
-``pilerl.loggers``; the simulator's ``EnvConfig`` is in ``schema.py`` until it moves to
-``pilerl/sim``. The YAML files under conf/ extend the stored schemas, so a wrong type or an
-unknown key fails when Hydra composes a config, and they state only what differs from the
-dataclasses' defaults. ``pipeline.py`` composes the main job's config. See
-docs/architecture.md.
-"""
+``pilerl.loggers``; the simulator's ``EnvConfig`` is in ``pilerl.sim.settings``. The YAML
+files under conf/ extend the stored schemas, so a wrong type or an unknown key fails when
+Hydra composes a config, and they state only what differs from the dataclasses' defaults.
+``pipeline.py`` composes the main job's config. See docs/architecture.md. """
 
 from __future__ import annotations
+
+from pathlib import Path
+
+CONF_ENV = Path(__file__).resolve().parents[2] / "conf" / "env"  # this checkout's env YAMLs
 
 
 def register_configs() -> None:
     """Put every schema in Hydra's ConfigStore (idempotent): the recipes' primary schemas
     (``<recipe>_schema``) and each config group's (``<group>/<name>_schema``).
 
-    The rooms are imported here, not at the top: they import ``EnvConfig`` from
-    ``pilerl.config.schema``, so this package must not import them when it is first loaded.
+    The rooms are imported here, not at the top, so that importing this package stays cheap.
     """
     from hydra.core.config_store import ConfigStore
 
@@ -33,10 +34,10 @@ def register_configs() -> None:
     from pilerl.loggers import LoggerConfig
     from pilerl.policies.settings import PolicyConfig, SensorsConfig
     from pilerl.rl.config import ALGORITHMS, CurriculumConfig, FinetuneConfig
+    from pilerl.sim.settings import register_env_configs
     from pilerl.training.settings import TrainBCConfig
 
     from .pipeline import PipelineConfig
-    from .schema import EnvConfig
 
     primary = {
         "scoop": ScoopConfig,
@@ -50,7 +51,6 @@ def register_configs() -> None:
         "deploy": DeployConfig,
     }
     groups = {
-        "env": {"env": EnvConfig},
         "policy": {"policy": PolicyConfig},
         "sensors": {"sensors": SensorsConfig},
         "dataset": {"dataset": DatasetConfig},
@@ -64,6 +64,8 @@ def register_configs() -> None:
     for group, schemas in groups.items():
         for name, schema in schemas.items():
             store.store(group=group, name=f"{name}_schema", node=schema)
+    # one ``env`` schema per installed simulator, from its declared options
+    register_env_configs(yaml_names={p.stem for p in CONF_ENV.glob("*.yaml")})
 
 
 __all__ = ["register_configs"]

@@ -11,12 +11,12 @@ from dataclasses import dataclass, field
 
 from omegaconf import MISSING
 
-from pilerl.config.schema import EnvConfig
 from pilerl.data.settings import DemosConfig
 from pilerl.evaluation.settings import ClosedLoopConfig
 from pilerl.loggers import LoggerConfig
 from pilerl.policies.settings import PolicyConfig, SensorsConfig, check_controller
 from pilerl.rl.config import FinetuneConfig
+from pilerl.sim.settings import EnvConfig
 from pilerl.training.settings import BCStepConfig
 
 
@@ -44,9 +44,6 @@ class PipelineConfig:
                 f"policy: {self.policy.name!r} cannot be fine-tuned by RL (not "
                 f"differentiable); choose one of {list(NEURAL_CONTROLLERS)}"
             )
-        if not self.demos.physics_hz_ok(self.env):
-            raise ValueError(
-                f"demos.record_hz ({self.demos.record_hz}) must be <= env.physics_hz "
-                f"({self.env.physics_hz})"
-            )
+        self.demos.check_rate(self.env)
+        self.evaluation.condition_names(self.env)
         check_controller(self.policy, self.sensors, trainer=None)

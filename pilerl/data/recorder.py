@@ -1,10 +1,11 @@
 """Record demonstrations: run operators in a simulator and store schema-v1 episodes.
 
-``record_demonstrations`` draws one operator per episode (``make_scripted_expert`` with the
-episode's own generator), runs the episodes as batched rollouts (``pilerl.sim.rollout``,
-an ``OperatorModule`` as the policy) in worker processes (one intra-op thread each) and
-appends them, in episode order, to an ``EpisodeStore`` from this process only (the store
-also takes a lock, so several recording processes may share one dataset).
+``record_demonstrations`` draws one operator per episode from the simulator's scripted
+expert (its plugin's ``scripted_expert``, given the episode's own generator), runs the
+episodes as batched rollouts (``pilerl.sim.rollout``, an ``OperatorModule`` as the policy)
+in worker processes (one intra-op thread each) and appends them, in episode order, to an
+``EpisodeStore`` from this process only (the store also takes a lock, so several recording
+processes may share one dataset).
 
 A rollout's rows already are a schema episode: ``episode_from_rollout`` only picks the
 schema's keys, the operator's clean label as ``action`` and, when an operator's executed
@@ -19,16 +20,17 @@ import json
 import math
 import os
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
 from tqdm import tqdm
 
-from pilerl.operators import OperatorModule, make_scripted_expert
+from pilerl.operators import OperatorModule
 from pilerl.operators.module import ACTION_KEY, LABEL_KEY, PHASE_KEY
 from pilerl.runtime import process_pool
+from pilerl.sim import get_simulator
 from pilerl.sim.rollout import (
     Rollout,
     control_period_s,
@@ -42,7 +44,7 @@ from .schema import EpisodeMeta, SchemaError, make_episode
 from .store import EpisodeStore
 
 EXECUTED_KEY = "executed_action"  # the executed command, where it differs from the label
-RECORDED_INFO = ("start_distance_m", "approach_angle_rad", "fill_fraction", "success")
+START_INFO = ("start_distance_m", "approach_angle_rad")  # kept in EpisodeMeta.start if reported
 MAX_EPISODES_PER_ROLLOUT = 8  # TorchRL's per-step cost is paid once for a chunk's episodes
 
 
@@ -54,17 +56,17 @@ class RecordingPlan:
         simulator: plugin name.
         env_kwargs: simulator arguments (condition, control_hz = the recording rate...).
         n_episodes: how many episodes.
-        seed: base seed; episode i uses env seed ``seed * 100_000 + i`` and its own style.
-        trigger_sensor: the operators' impact cue (see ``sample_style``).
-        mistake_rate: share of operators who raise the boom too early.
+        seed: base seed; episode i uses env seed ``seed * 100_000 + i`` and its own
+            operator, drawn from the generator ``numpy.random.default_rng([seed, i])``.
+        expert: options of the simulator's scripted expert (the pile loader's:
+            ``trigger_sensor``, ``mistake_rate``); ``{}``: its defaults.
     """
 
     simulator: str
     env_kwargs: dict
     n_episodes: int
     seed: int = 0
-    trigger_sensor: str = "drive_pressure"
-    mistake_rate: float = 0.28
+    expert: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.n_episodes < 1:
@@ -102,8 +104,8 @@ def episode_from_rollout(rows: TensorDictBase, *, sensors: Sequence[str], dt: fl
 
 def record_episode(env: SimulatorBatchEnv, operator, *, seed: int) -> tuple[TensorDict, dict, dict]:
     """Run ``operator`` for one episode of ``env`` (one simulator, from ``make_rollout_env``
-    with ``info_keys=RECORDED_INFO``); returns (schema-v1 episode, reset info, final info)
-    (the info entries the env carries and the simulator reported)."""
+    with ``info_keys=recorded_info(simulator)``); returns (schema-v1 episode, reset info,
+    final info) (the info entries the env carries and the simulator reported)."""
     policy = OperatorModule.for_env([operator], env)
     run = rollout(env, policy, seed=seed)
     rows = run.episode(0)
@@ -111,10 +113,18 @@ def record_episode(env: SimulatorBatchEnv, operator, *, seed: int) -> tuple[Tens
     return episode, _info(run, 0, at=0), _info(run, 0, at=-1)
 
 
+def recorded_info(simulator: str) -> tuple[str, ...]:
+    """The ``info`` entries a recording carries: ``START_INFO`` (where the simulator reports
+    them) and the simulator's declared success and fill keys."""
+    plugin = get_simulator(simulator)
+    keys = (*START_INFO, plugin.success_key, *((plugin.fill_key,) if plugin.fill_key else ()))
+    return tuple(dict.fromkeys(keys))
+
+
 def _info(run: Rollout, episode: int, *, at: int) -> dict[str, float]:
-    """The ``RECORDED_INFO`` entries the simulator reported at reset (``at=0``) or after the
+    """The carried ``info`` entries the simulator reported at reset (``at=0``) or after the
     last step (``at=-1``) of an episode."""
-    values = {k: float(run.info(episode, k)[at]) for k in RECORDED_INFO if k in run.info_keys}
+    values = {k: float(run.info(episode, k)[at]) for k in run.info_keys}
     return {k: v for k, v in values.items() if not math.isnan(v)}
 
 
@@ -124,15 +134,13 @@ def _record_chunk(
     """Worker: record episodes ``first`` .. ``first + count - 1`` of ``plan`` as one
     batched rollout (runs in a child process)."""
     torch.set_num_threads(1)
-    env = make_rollout_env(plan.simulator, plan.env_kwargs, num_envs=count, info_keys=RECORDED_INFO)
+    plugin = get_simulator(plan.simulator)
+    env = make_rollout_env(
+        plan.simulator, plan.env_kwargs, num_envs=count, info_keys=recorded_info(plan.simulator)
+    )
     dt = control_period_s(env)
     operators = [
-        make_scripted_expert(
-            dt=dt,
-            rng=np.random.default_rng([plan.seed, index]),
-            mistake_rate=plan.mistake_rate,
-            trigger_sensor=plan.trigger_sensor,
-        )
+        plugin.make_expert(dt=dt, rng=np.random.default_rng([plan.seed, index]), **plan.expert)
         for index in range(first, first + count)
     ]
     sensors = sensor_names(env)
@@ -142,6 +150,7 @@ def _record_chunk(
     for i, operator in enumerate(operators):
         rows = run.episode(i)
         start, final = _info(run, i, at=0), _info(run, i, at=-1)
+        success, fill = plugin.score(final) if plugin.success_key in final else (False, math.nan)
         condition = getattr(env.simulators[i].unwrapped, "condition", None)
         style = getattr(operator, "style", None)
         meta = EpisodeMeta(
@@ -157,10 +166,10 @@ def _record_chunk(
                 "kind": "scripted",
                 "style": dataclasses.asdict(style) if dataclasses.is_dataclass(style) else {},
             },
-            fill_fraction=float(final.get("fill_fraction", math.nan)),
-            success=bool(final.get("success", False)),
+            fill_fraction=fill,
+            success=success,
             seed=run.seeds[i],
-            start={k: start[k] for k in ("start_distance_m", "approach_angle_rad") if k in start},
+            start={k: start[k] for k in START_INFO if k in start},
         )
         recorded.append((episode_from_rollout(rows, sensors=sensors, dt=dt), meta))
     env.close()

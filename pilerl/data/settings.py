@@ -11,11 +11,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from omegaconf import MISSING
 
 from pilerl import checks
-from pilerl.config.schema import EnvConfig
+from pilerl.sim.settings import EnvConfig
 
 
 @dataclass
@@ -65,10 +66,10 @@ class RecordConfig:
         n_episodes: episodes to record (the paper: 72 summer demonstrations).
         seed: base seed (episode i: env seed ``seed * 100000 + i``, its own style).
         record_hz: sampling (= control) rate of the recording [Hz] (the paper recorded
-            sensors at 500 Hz).
-        trigger_sensor: the operators' impact cue (``drive_pressure`` or
-            ``telescope_pressure``; see ``pilerl.operators.sample_style``).
-        mistake_rate: share of operators who raise the boom too early.
+            sensors at 500 Hz); it replaces ``env.control_hz`` (the simulator must declare
+            that option).
+        expert: options of the simulator's scripted expert for drawn operator styles
+            (the pile loader's: ``trigger_sensor``, ``mistake_rate``); ``{}``: its defaults.
         workers: recording processes.
         out_dir: dataset directory; an existing one is resumed.
     """
@@ -77,23 +78,19 @@ class RecordConfig:
     n_episodes: int = 72
     seed: int = 0
     record_hz: float = 500.0
-    trigger_sensor: str = "drive_pressure"
-    mistake_rate: float = 0.28
+    expert: dict[str, Any] = field(default_factory=dict)
     workers: int = 2
     out_dir: str = MISSING
 
     def __post_init__(self) -> None:
-        from pilerl.operators.scripted import TRIGGER_RANGES_MPA
-
         checks.positive_int("n_episodes", self.n_episodes)
         checks.non_negative_int("seed", self.seed)
         checks.positive("record_hz", self.record_hz)
-        if self.env.physics_hz < self.record_hz:
-            raise ValueError(
-                f"record_hz ({self.record_hz}) must be <= env.physics_hz ({self.env.physics_hz})"
-            )
-        checks.one_of("trigger_sensor", self.trigger_sensor, sorted(TRIGGER_RANGES_MPA))
-        checks.fraction("mistake_rate", self.mistake_rate)
+        try:
+            self.env.make_kwargs(control_hz=self.record_hz)
+        except ValueError as error:
+            raise ValueError(f"record_hz ({self.record_hz}): {error}") from None
+        self.env.plugin().check_expert_options(self.expert, where="expert", drawn=True)
         checks.positive_int("workers", self.workers)
         if self.out_dir != MISSING:
             checks.path("out_dir", self.out_dir)
@@ -144,6 +141,10 @@ class DemosConfig:
         checks.non_negative_int("demos.seed", self.seed)
         checks.positive_int("demos.workers", self.workers)
 
-    def physics_hz_ok(self, env: EnvConfig) -> bool:
-        """Whether ``env`` simulates at least one physics step per recorded sample."""
-        return env.physics_hz >= self.record_hz
+    def check_rate(self, env: EnvConfig) -> None:
+        """``record_hz`` is a control rate ``env``'s simulator accepts (the pile loader: at
+        most its physics rate)."""
+        try:
+            env.make_kwargs(control_hz=self.record_hz)
+        except ValueError as error:
+            raise ValueError(f"demos.record_hz ({self.record_hz}): {error}") from None

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pilerl.sim import make_gym_env
+from pilerl.sim import get_simulator, make_gym_env
 
 from .link import LinkFault, MachineLink
 from .packets import ControllerState, SensorFlag, SensorLayout
@@ -71,7 +71,7 @@ def run_bridge(
 ) -> list[dict]:
     """Run ``settings.seeds`` episodes against the runtime; one record per episode."""
     env = make_gym_env(settings.simulator, **settings.env_kwargs)
-    layout = SensorLayout.from_env(env)
+    layout = SensorLayout.from_env(env, get_simulator(settings.simulator).sensor_units)
     link = MachineLink(layout, runtime_address, fault=fault, speedup=settings.speedup)
     try:
         return [_episode(env, layout, link, settings, seed) for seed in settings.seeds]

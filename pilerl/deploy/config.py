@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from pilerl.config.schema import EnvConfig
+from pilerl.sim.settings import EnvConfig
 
 from .bridge import BridgeSettings
 from .loop import RuntimeSettings

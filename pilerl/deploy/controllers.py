@@ -7,7 +7,7 @@ Two kinds, chosen by file suffix:
 - ``.pt``: a pilerl actor checkpoint (``best.pt``) run as its TorchRL ``TensorDictModule``,
   as the closed-loop evaluator runs it.
 
-``scripted`` stands for the scripted operator (``pilerl.operators``): a controller with a
+``scripted`` stands for the simulator's scripted expert (its plugin's): a controller with a
 known success rate, for checking the runtime and the HIL bridge without a trained one.
 
 All return ``action`` as float32 [boom, bucket, throttle]; clamping to [-1, 1] and the
@@ -88,16 +88,17 @@ class CheckpointController:
 
 
 class ScriptedOperatorController:
-    """The scripted operator with its default style, reading every sensor of the layout.
+    """The simulator's nominal scripted expert (its plugin's ``scripted_expert``), reading
+    every sensor of the layout.
 
     It keeps time by counting calls (one per control period) and is reset at each
     episode start, as the evaluator resets it.
     """
 
-    def __init__(self, sensors: list[str], *, control_hz: float) -> None:
-        from pilerl.operators import OperatorStyle, ScriptedScoopOperator
+    def __init__(self, sensors: list[str], *, control_hz: float, simulator: str) -> None:
+        from pilerl.sim import get_simulator
 
-        self.operator = ScriptedScoopOperator(OperatorStyle(), dt=1.0 / control_hz)
+        self.operator = get_simulator(simulator).make_expert(dt=1.0 / control_hz)
         self.input_names = list(sensors)
         self.name = SCRIPTED
 
@@ -112,14 +113,19 @@ SCRIPTED = "scripted"
 
 
 def load_controller(
-    path: str | Path, *, sensors: list[str] | None = None, control_hz: float = 20.0
+    path: str | Path,
+    *,
+    sensors: list[str] | None = None,
+    control_hz: float = 20.0,
+    simulator: str = "pile_loader",
 ) -> DeployedController:
     """``OnnxController`` for ``.onnx``, ``CheckpointController`` for ``.pt``, and the
-    ``ScriptedOperatorController`` for ``scripted`` (which reads ``sensors``)."""
+    ``ScriptedOperatorController`` for ``scripted`` (``simulator``'s expert, which reads
+    ``sensors``)."""
     if str(path) == SCRIPTED:
         if sensors is None:
             raise ValueError("the scripted operator needs the machine's sensor names")
-        return ScriptedOperatorController(sensors, control_hz=control_hz)
+        return ScriptedOperatorController(sensors, control_hz=control_hz, simulator=simulator)
     suffix = Path(path).suffix
     if suffix == ".onnx":
         return OnnxController(path)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import torch
 
-from pilerl.sim import make_gym_env
+from pilerl.sim import get_simulator, make_gym_env
 
 from .bridge import BridgeSettings, run_bridge
 from .controllers import DeployedController, load_controller
@@ -25,7 +25,8 @@ def simulator_layout(simulator: str, env_kwargs: dict) -> tuple[SensorLayout, fl
     """The simulator's sensor layout and its control rate [Hz]."""
     env = make_gym_env(simulator, **env_kwargs)
     try:
-        return SensorLayout.from_env(env), 1.0 / float(env.unwrapped.dt)
+        layout = SensorLayout.from_env(env, get_simulator(simulator).sensor_units)
+        return layout, 1.0 / float(env.unwrapped.dt)
     finally:
         env.close()
 
@@ -72,7 +73,9 @@ def run_hil(
             f" a watchdog age of {runtime.max_sensor_age_s} s would call every gap stale"
         )
     if isinstance(controller, str | Path):
-        controller = load_controller(controller, sensors=layout.names, control_hz=control_hz)
+        controller = load_controller(
+            controller, sensors=layout.names, control_hz=control_hz, simulator=bridge.simulator
+        )
     deployed = controller
     kind = runtime_kind(deployed.name)
     server = ControlRuntime(deployed, layout, runtime, run_dir=run_dir, runtime_kind=kind)

@@ -33,6 +33,7 @@ import json
 import math
 import struct
 import zlib
+from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
 
@@ -131,11 +132,10 @@ class SensorLayout:
         return cls(tuple(SensorChannel(**entry) for entry in data))
 
     @classmethod
-    def from_env(cls, env) -> SensorLayout:
-        """From a simulator env: its ``Dict`` observation space (order, ranges) and its
-        ``sensor_units``."""
+    def from_env(cls, env, units: Mapping[str, str]) -> SensorLayout:
+        """From a simulator env: its ``Dict`` observation space (order, ranges) and the
+        sensor ``units`` its plugin declares (``SimulatorPlugin.sensor_units``)."""
         base = env.unwrapped
-        units = getattr(base, "sensor_units", {})
         channels = []
         for name, space in base.observation_space.spaces.items():
             channels.append(

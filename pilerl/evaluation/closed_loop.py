@@ -17,14 +17,14 @@ from __future__ import annotations
 
 import logging
 import statistics
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
 from pilerl.figures import legend_outside, plt, save_figure
-from pilerl.sim import make_gym_env
+from pilerl.sim import get_simulator, make_gym_env
 
 from .episode import make_episode_env, run_episode
 from .evaluator import EvaluationPlan, evaluate, resolve_controller, summarize, write_results
@@ -72,10 +72,11 @@ def run_closed_loop(
         warn_if_other_control_rate(checkpoint, float(control_hz))
     controller = resolve_controller(controller)  # a saved actor is read once, here
     records = evaluate(controller, plan, workers=workers, progress=progress)
-    summary = summarize(records)
+    summary = summarize(records, groups=get_simulator(plan.simulator).condition_groups)
     # --- results first: a person can read them while the videos render
     write_results(records, summary, out_dir)
-    plot_success(summary, out_dir / "success.png", title=controller.name)
+    pooled = set(summary) - set(plan.conditions)
+    plot_success(summary, out_dir / "success.png", title=controller.name, pooled=pooled)
     plot_fill(records, out_dir / "fill.png", title=controller.name)
     log_summary(controller.name, summary)
     if videos:
@@ -150,8 +151,10 @@ def render_rollout(
     return write_mp4(frames, path, fps=episode.frame_hz)
 
 
-def plot_success(summary: dict[str, dict], path: str | Path, *, title: str = "") -> Path:
-    """Success rate per condition (pooled entries hatched) with 95% Wilson intervals."""
+def plot_success(
+    summary: dict[str, dict], path: str | Path, *, title: str = "", pooled: Collection[str] = ()
+) -> Path:
+    """Success rate per condition (``pooled`` entries hatched) with 95% Wilson intervals."""
     names = list(summary)
     rates = np.array([summary[n]["success_rate"] for n in names])
     low = rates - np.array([summary[n]["success_low"] for n in names])
@@ -159,7 +162,7 @@ def plot_success(summary: dict[str, dict], path: str | Path, *, title: str = "")
     fig, ax = plt.subplots(figsize=(1.2 + 1.1 * len(names), 3.2))
     bars = ax.bar(names, 100 * rates, yerr=100 * np.vstack([low, high]), capsize=4)
     for bar, name in zip(bars, names, strict=True):
-        if not name.startswith(("summer", "winter_")):
+        if name in pooled:
             bar.set_hatch("//")
         n = summary[name]
         ax.annotate(

@@ -19,7 +19,7 @@ import io
 import math
 import os
 import statistics
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,8 +29,9 @@ from tensordict.nn import TensorDictModule, TensorDictModuleBase
 from tqdm import tqdm
 
 from pilerl.io import atomic_path, write_text_atomic
-from pilerl.operators import OperatorModule, OperatorStyle, make_scripted_expert
+from pilerl.operators import OperatorModule
 from pilerl.runtime import process_pool
+from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
 from pilerl.sim.rollout import (
     Rollout,
     RowByRow,
@@ -43,12 +44,11 @@ from pilerl.sim.torchrl_env import SimulatorBatchEnv
 
 from .metrics import wilson_interval
 
-# ``info`` entries an episode record is made of (NaN where a simulator reports none)
+# ``info`` entries an episode record is made of (NaN where a simulator reports none), beside
+# the simulator's declared success and fill keys (``evaluation_info``)
 EVALUATION_INFO = (
     "start_distance_m",
     "approach_angle_rad",
-    "fill_fraction",
-    "success",
     "scoop_finished",
     "elapsed_s",
     "wheel_slip_m_s",
@@ -61,15 +61,23 @@ MAX_EPISODES_PER_ROLLOUT = 8  # TorchRL's per-step cost is paid once for a chunk
 
 @dataclass(frozen=True)
 class ScriptedController:
-    """The scripted operator with a fixed style."""
+    """The simulator's nominal scripted expert (its plugin's ``scripted_expert``).
 
-    style: OperatorStyle = field(default_factory=OperatorStyle)
+    Attributes:
+        options: the expert's options (``{}``: its defaults).
+        name: label in plots and tables.
+        simulator: whose expert.
+    """
+
+    options: Mapping[str, object] = field(default_factory=dict)
     name: str = "scripted"
+    simulator: str = DEFAULT_SIMULATOR
 
     def policy(self, env: SimulatorBatchEnv) -> TensorDictModuleBase:
         """One operator per simulator of ``env``."""
         dt = control_period_s(env)
-        operators = [make_scripted_expert(dt=dt, style=self.style) for _ in env.simulators]
+        expert = get_simulator(self.simulator).make_expert
+        operators = [expert(dt=dt, rng=None, **dict(self.options)) for _ in env.simulators]
         return OperatorModule.for_env(operators, env)
 
 
@@ -170,6 +178,14 @@ class EvaluationPlan:
 _ENVS: dict[tuple, SimulatorBatchEnv] = {}
 
 
+def evaluation_info(simulator: str) -> tuple[str, ...]:
+    """The ``info`` entries an evaluation of ``simulator`` carries: its declared success and
+    fill keys, then ``EVALUATION_INFO``."""
+    plugin = get_simulator(simulator)
+    declared = (plugin.success_key, *((plugin.fill_key,) if plugin.fill_key else ()))
+    return tuple(dict.fromkeys((*declared, *EVALUATION_INFO)))
+
+
 def _cached_env(plan: EvaluationPlan, condition: str, num_envs: int) -> SimulatorBatchEnv:
     key = (plan.simulator, repr(sorted(plan.env_kwargs.items())), condition, num_envs)
     if key not in _ENVS:
@@ -177,7 +193,7 @@ def _cached_env(plan: EvaluationPlan, condition: str, num_envs: int) -> Simulato
             plan.simulator,
             {**plan.env_kwargs, "condition": condition},
             num_envs=num_envs,
-            info_keys=EVALUATION_INFO,
+            info_keys=evaluation_info(plan.simulator),
         )
     return _ENVS[key]
 
@@ -216,19 +232,37 @@ def _run_chunk(controller, plan: EvaluationPlan, condition: str, first: int, cou
     run = rollout(env, controller.policy(env), seed=plan.episode_seed(first))
     names = control_names(env)
     boom = names.index("boom") if "boom" in names else None
+    plugin = get_simulator(plan.simulator)
     return [
         episode_record(
-            run, i, controller=controller.name, condition=condition, index=first + i, boom=boom
+            run,
+            i,
+            controller=controller.name,
+            condition=condition,
+            index=first + i,
+            boom=boom,
+            success_key=plugin.success_key,
+            fill_key=plugin.fill_key,
         )
         for i in range(count)
     ]
 
 
 def episode_record(
-    run: Rollout, episode: int, *, controller: str, condition: str, index: int, boom: int | None
+    run: Rollout,
+    episode: int,
+    *,
+    controller: str,
+    condition: str,
+    index: int,
+    boom: int | None,
+    success_key: str = "success",
+    fill_key: str | None = "fill_fraction",
 ) -> dict:
     """One row of ``episodes.csv``: episode ``episode`` of ``run`` (evaluation index
-    ``index``), from its actions and the ``EVALUATION_INFO`` the simulator reported."""
+    ``index``), from its actions and the ``info`` the simulator reported (``success_key``
+    and ``fill_key`` are the simulator's declared ones; without a fill key the fill is the
+    success as 0/1)."""
 
     def final(key: str, default: float = math.nan) -> float:
         value = float(run.info(episode, key)[-1])
@@ -244,7 +278,7 @@ def episode_record(
     dug_in = np.flatnonzero(depth >= PENETRATION_M)
     first_lift_s = float(elapsed[lifted[0]]) if len(lifted) else math.nan
     penetration_s = float(elapsed[dug_in[0]]) if len(dug_in) else math.nan
-    success = bool(final("success", 0.0))
+    success = bool(final(success_key, 0.0))
     tipped = bool(final("tipped", 0.0))
     finished = bool(final("scoop_finished", 0.0))
     rewards = run.episode(episode).get(("next", "reward"))[:, 0].numpy().astype(np.float64)
@@ -255,7 +289,7 @@ def episode_record(
         "seed": run.seeds[episode],
         "start_distance_m": float(run.info(episode, "start_distance_m")[0]),
         "approach_angle_rad": float(run.info(episode, "approach_angle_rad")[0]),
-        "fill_fraction": final("fill_fraction"),
+        "fill_fraction": final(fill_key) if fill_key else float(success),
         "success": success,
         "scoop_finished": finished,
         "elapsed_s": final("elapsed_s"),
@@ -345,21 +379,25 @@ def evaluate(
     return records
 
 
-def summarize(records: Sequence[dict], *, confidence: float = 0.95) -> dict[str, dict]:
+def summarize(
+    records: Sequence[dict],
+    *,
+    confidence: float = 0.95,
+    groups: Mapping[str, Sequence[str]] | None = None,
+) -> dict[str, dict]:
     """Per condition: success rate with its Wilson interval, fill, time, slip and spill.
 
-    With two or more ``winter_*`` conditions, a pooled ``winter`` entry is added: the paper's
-    winter tests were spread over days with different ground and material (its A-D).
+    For each of ``groups`` (the simulator's declared condition groups) with two or more
+    tested conditions, a pooled entry is added: the pile loader's ``winter`` pools A-D,
+    the way the paper's winter tests were spread over days with different ground.
     """
     conditions = list(dict.fromkeys(r["condition"] for r in records))
-    groups = {c: [r for r in records if r["condition"] == c] for c in conditions}
-    winter = [c for c in conditions if c.startswith("winter_")]
-    if len(winter) >= 2 and WINTER_POOL not in groups:
-        groups[WINTER_POOL] = [r for r in records if r["condition"] in winter]
-    return {name: summarize_rows(rows, confidence) for name, rows in groups.items()}
-
-
-WINTER_POOL = "winter"
+    rows = {c: [r for r in records if r["condition"] == c] for c in conditions}
+    for group, members in (groups or {}).items():
+        tested = [c for c in members if c in rows]
+        if len(tested) >= 2 and group not in rows:
+            rows[group] = [r for r in records if r["condition"] in tested]
+    return {name: summarize_rows(group, confidence) for name, group in rows.items()}
 
 
 def summarize_rows(rows: Sequence[dict], confidence: float = 0.95) -> dict:
@@ -418,7 +456,6 @@ def write_results(records: Sequence[dict], summary: dict, out_dir: str | Path) -
 
 __all__ = [
     "FAILURE_MODES",
-    "WINTER_POOL",
     "ActorController",
     "ActorWeights",
     "EvaluationPlan",

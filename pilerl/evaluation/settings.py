@@ -9,12 +9,13 @@ configs; ``EvaluateConfig`` and ``ScoopConfig`` are the primary schemas of
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from omegaconf import MISSING
 
 from pilerl import checks
-from pilerl.config.schema import EnvConfig
 from pilerl.operators import OperatorStyle
+from pilerl.sim.settings import EnvConfig
 
 
 @dataclass
@@ -22,7 +23,9 @@ class ClosedLoopConfig:
     """Closed-loop evaluation: N seeded episodes per condition (``pilerl.evaluation``).
 
     Attributes:
-        conditions: conditions to test in; two or more ``winter_*`` are also pooled.
+        conditions: conditions and condition groups of the simulator to test in (``all``:
+            every condition; the pile loader's ``winter``: A-D); a declared group with two
+            or more tested conditions is also pooled.
         episodes: episodes per condition (0 = no closed-loop evaluation).
         seed: base seed; episode i starts from the same pose in every condition
             (demonstrations use seed 0: test starts differ from training ones).
@@ -35,9 +38,7 @@ class ClosedLoopConfig:
         render_width, render_height: video frame size [px].
     """
 
-    conditions: list[str] = field(
-        default_factory=lambda: ["summer", "winter_a", "winter_b", "winter_c", "winter_d"]
-    )
+    conditions: list[str] = field(default_factory=lambda: ["all"])
     episodes: int = 10
     seed: int = 1
     workers: int | None = None
@@ -54,14 +55,20 @@ class ClosedLoopConfig:
             checks.positive_int("evaluation.workers", self.workers)
         if self.video_conditions is not None:
             checks.names("evaluation.video_conditions", self.video_conditions)
-            unknown = [c for c in self.video_conditions if c not in self.conditions]
-            if unknown:
-                raise ValueError(
-                    f"evaluation.video_conditions: {unknown} are not evaluated; "
-                    f"evaluation.conditions are {list(self.conditions)}"
-                )
         checks.render_size("evaluation.", self.render_width, self.render_height)
         checks.video_choice("evaluation.videos", self.videos)
+
+    def condition_names(self, env: EnvConfig) -> tuple[str, ...]:
+        """The conditions tested in ``env``'s simulator (groups expanded); checks that
+        ``video_conditions`` are among them."""
+        conditions = env.plugin().resolve_conditions(self.conditions, where="evaluation.conditions")
+        unknown = [c for c in self.video_conditions or () if c not in conditions]
+        if unknown:
+            raise ValueError(
+                f"evaluation.video_conditions: {unknown} are not evaluated; "
+                f"evaluation.conditions are {list(conditions)}"
+            )
+        return conditions
 
     def plan(self, env: EnvConfig):
         """The ``EvaluationPlan`` of this config in ``env`` (its condition is replaced)."""
@@ -69,9 +76,8 @@ class ClosedLoopConfig:
 
         kwargs = env.make_kwargs()
         kwargs.pop("condition")
-        return EvaluationPlan(
-            env.simulator, kwargs, tuple(self.conditions), self.episodes, seed=self.seed
-        )
+        conditions = self.condition_names(env)
+        return EvaluationPlan(env.simulator, kwargs, conditions, self.episodes, seed=self.seed)
 
 
 @dataclass
@@ -81,17 +87,18 @@ class EvaluateConfig:
     Attributes:
         env: simulator arguments (``env.condition`` is replaced by each evaluated one).
         checkpoint: a saved actor (``best.pt`` of train_bc or finetune); ``None`` evaluates
-            the scripted operator with the ``operator`` style.
+            the simulator's nominal scripted expert.
         name: the controller's name in plots and tables (default: from the checkpoint's
             run directory).
-        operator: scripted operator style (used when ``checkpoint`` is ``None``).
+        expert: options of the nominal scripted expert (used when ``checkpoint`` is
+            ``None``; the pile loader's: ``OperatorStyle`` fields); ``{}``: its defaults.
         evaluation: conditions, episodes, seed, workers, videos.
     """
 
     env: EnvConfig = field(default_factory=EnvConfig)
     checkpoint: str | None = None
     name: str | None = None
-    operator: OperatorStyle = field(default_factory=OperatorStyle)
+    expert: dict[str, Any] = field(default_factory=dict)
     evaluation: ClosedLoopConfig = field(default_factory=ClosedLoopConfig)
     output_dir: str = MISSING
 
@@ -100,6 +107,9 @@ class EvaluateConfig:
             checks.path("checkpoint", self.checkpoint)
         if self.name is not None:
             checks.name("name", self.name)
+        self.evaluation.condition_names(self.env)
+        if self.checkpoint is None:
+            self.env.plugin().check_expert_options(self.expert, where="expert", drawn=False)
 
 
 @dataclass

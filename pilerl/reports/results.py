@@ -18,9 +18,10 @@ import numpy as np
 
 from pilerl.evaluation.metrics import wilson_interval
 from pilerl.runs import read_run_settings
+from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
 from pilerl.sweeps.hydra_record import HYDRA_DIR, job_directories, read_choices, read_config
 
-SUMMER, WINTER = "summer", "winter"
+SUMMER, WINTER = "summer", "winter"  # the paper's two tests (a condition and a group)
 
 
 @dataclass(frozen=True)
@@ -100,7 +101,9 @@ def closed_loop_cells(sweep_dir: str | Path) -> tuple[dict[tuple, Cell], list[Jo
         except json.JSONDecodeError as error:
             raise ValueError(f"{summary_file}: corrupt ({error})") from None
         finished.append(setup)
-        winters = [name for name in summary if name.startswith("winter_")]
+        simulator = (setup.config.get("env") or {}).get("simulator", DEFAULT_SIMULATOR)
+        members = get_simulator(simulator).condition_groups.get(WINTER, ())
+        winters = [name for name in summary if name in members]
         tests = {SUMMER: summary.get(SUMMER)}
         tests[WINTER] = summary.get(WINTER) or (summary[winters[0]] if winters else None)
         for test, row in tests.items():

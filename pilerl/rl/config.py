@@ -11,6 +11,7 @@ exist (a pipeline writes them after building its config).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,13 +19,12 @@ from typing import Any
 from omegaconf import MISSING
 
 from pilerl import checks
-from pilerl.config.schema import EnvConfig
 from pilerl.loggers import LoggerConfig
 from pilerl.registry import Registry
+from pilerl.sim.settings import EnvConfig
 
 REGULARIZERS = ("bc_demo", "frozen_actor", "none")
 BACKENDS = ("single", "multiprocess", "ray")
-WINTER_CONDITIONS = ["winter_a", "winter_b", "winter_c", "winter_d"]
 
 
 @dataclass
@@ -191,7 +191,8 @@ class CurriculumStage:
 
     Attributes:
         frames: environment steps in this stage.
-        conditions: condition name -> relative weight (each episode draws one).
+        conditions: condition (or group: each member gets its weight) -> relative weight;
+            each episode draws one condition.
     """
 
     frames: int = MISSING
@@ -252,7 +253,9 @@ class EvaluationConfig:
     """Closed-loop evaluation during and after fine-tuning (``pilerl.evaluation``).
 
     Attributes:
-        groups: group name -> conditions pooled into one success rate.
+        groups: group name -> conditions (or groups) pooled into one success rate;
+            empty: the simulator's declared groups, then each condition in no group on its
+            own (the pile loader: ``winter`` = A-D, ``summer``).
         every_frames: evaluate every this many frames, and at frame 0 (0 = only before
             and after: no curve, ``best.pt`` is the last actor).
         episodes: episodes per condition in a periodic evaluation (picks ``best.pt``).
@@ -266,9 +269,7 @@ class EvaluationConfig:
         confidence: level of the Wilson intervals.
     """
 
-    groups: dict[str, list[str]] = field(
-        default_factory=lambda: {"winter": list(WINTER_CONDITIONS), "summer": ["summer"]}
-    )
+    groups: dict[str, list[str]] = field(default_factory=dict)
     every_frames: int = 20_000
     episodes: int = 5
     final_episodes: int = 10
@@ -280,7 +281,7 @@ class EvaluationConfig:
     confidence: float = 0.95
 
     def __post_init__(self) -> None:
-        if not self.groups or not all(self.groups.values()):
+        if not all(self.groups.values()):
             raise ValueError(f"evaluation.groups: each group needs conditions, got {self.groups}")
         checks.non_negative_int("evaluation.every_frames", self.every_frames)
         checks.positive_int("evaluation.episodes", self.episodes)
@@ -288,23 +289,8 @@ class EvaluationConfig:
         checks.positive_int("evaluation.workers", self.workers)
         if not (isinstance(self.confidence, int | float) and 0 < self.confidence < 1):
             raise ValueError(f"evaluation.confidence: must lie in (0, 1), got {self.confidence}")
-        unknown = sorted(set(self.video_conditions) - set(self.groups))
-        if unknown:
-            raise ValueError(
-                f"evaluation.video_conditions: groups {unknown} are not in evaluation.groups "
-                f"{sorted(self.groups)}"
-            )
         checks.non_negative_int("evaluation.seed", self.seed)
         checks.non_negative_int("evaluation.final_seed", self.final_seed)
-
-
-DEFAULT_REWARD_WEIGHTS = {
-    "reward_fill": 1.0,
-    "reward_spill": 1.0,
-    "reward_time": 1.0,
-    "reward_energy": 1.0,
-    "reward_success": 1.0,
-}
 
 
 @dataclass
@@ -323,7 +309,8 @@ class FinetuneConfig:
         curriculum: condition mixtures and their frames.
         reward_weights: multiplier of each named reward part reported by the simulator
             in ``info`` (``reward_fill``, ``reward_success``...); the training reward is
-            their weighted sum. Parts not named are left out.
+            their weighted sum. Parts not named are left out; empty: every reward part the
+            simulator declares, with weight 1.
         collection: collector backend and workers.
         evaluation: periodic and final closed-loop evaluation.
         seed: seeds torch, the collector envs and the replay sampling.
@@ -340,7 +327,7 @@ class FinetuneConfig:
     env: EnvConfig = field(default_factory=EnvConfig)
     algorithm: Any = MISSING  # a LearnerConfig, chosen by the algorithm group
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)
-    reward_weights: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_REWARD_WEIGHTS))
+    reward_weights: dict[str, float] = field(default_factory=dict)
     collection: CollectionConfig = field(default_factory=CollectionConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     seed: int = 0
@@ -350,8 +337,6 @@ class FinetuneConfig:
     output_dir: str = MISSING
 
     def __post_init__(self) -> None:
-        if not self.reward_weights:
-            raise ValueError("reward_weights: name at least one reward part")
         for part, weight in self.reward_weights.items():
             checks.finite(f"reward_weights.{part}", weight)
             if weight < 0:
@@ -365,6 +350,14 @@ class FinetuneConfig:
         if self.algorithm is MISSING or self.algorithm == MISSING:
             return  # the schema itself: the algorithm group fills it
         self._check_algorithm()
+        # the simulator's words in place of empty defaults (see the attributes)
+        _, self.evaluation.groups, self.reward_weights = _simulator_words(self)
+        unknown = sorted(set(self.evaluation.video_conditions) - set(self.evaluation.groups))
+        if unknown:
+            raise ValueError(
+                f"evaluation.video_conditions: groups {unknown} are not in evaluation.groups "
+                f"{sorted(self.evaluation.groups)}"
+            )
 
     def _check_algorithm(self) -> None:
         """The learner is registered and has what it needs from the rest of the config."""
@@ -413,6 +406,46 @@ class FinetuneConfig:
             raise FileNotFoundError(f"checkpoint: no such actor checkpoint {self.checkpoint!r}")
         if uses_demos(self) and not Path(self.demos).is_dir():
             raise FileNotFoundError(f"demos: no such dataset directory {self.demos!r}")
+
+
+def resolve_simulator_words(config: FinetuneConfig) -> FinetuneConfig:
+    """``config`` with the simulator's words filled in: curriculum groups expanded to
+    conditions, ``evaluation.groups`` and ``reward_weights`` defaulted from the simulator's
+    declaration (see their attributes). Unknown names fail listing the known ones."""
+    stages, groups, weights = _simulator_words(config)
+    return dataclasses.replace(
+        config,
+        curriculum=dataclasses.replace(config.curriculum, stages=stages),
+        evaluation=dataclasses.replace(config.evaluation, groups=groups),
+        reward_weights=weights,
+    )
+
+
+def _simulator_words(
+    config: FinetuneConfig,
+) -> tuple[list[CurriculumStage], dict[str, list[str]], dict[str, float]]:
+    plugin = config.env.plugin()
+    stages = [
+        dataclasses.replace(
+            stage,
+            conditions=plugin.resolve_mixture(
+                stage.conditions, where=f"curriculum.stages[{i}].conditions"
+            ),
+        )
+        for i, stage in enumerate(config.curriculum.stages)
+    ]
+    groups = {
+        group: list(plugin.resolve_conditions(members, where=f"evaluation.groups.{group}"))
+        for group, members in (config.evaluation.groups or plugin.pooled_groups()).items()
+    }
+    weights = dict(config.reward_weights) or dict.fromkeys(plugin.reward_parts, 1.0)
+    unknown = sorted(set(weights) - set(plugin.reward_parts))
+    if unknown:
+        raise ValueError(
+            f"reward_weights: simulator {plugin.name!r} reports no reward part(s) {unknown}; "
+            f"its parts: {list(plugin.reward_parts)}"
+        )
+    return stages, groups, weights
 
 
 def uses_demos(config: FinetuneConfig) -> bool:

@@ -23,7 +23,7 @@ from gymnasium.utils import seeding
 from torchrl.data import Unbounded
 from torchrl.envs import GymWrapper, default_info_dict_reader
 
-from pilerl.sim import make_gym_env
+from pilerl.sim import get_simulator, make_gym_env
 from pilerl.sim.torchrl_env import SimulatorBatchEnv
 
 SUCCESS_KEY = "success"
@@ -37,7 +37,8 @@ class ConditionMixtureEnv(gym.Env):
     Args:
         simulator: plugin name.
         env_kwargs: simulator arguments except ``condition``.
-        conditions: condition name -> relative weight (>= 0, not all zero).
+        conditions: condition (or condition group: each member gets its weight) ->
+            relative weight (>= 0, not all zero).
         reward_weights: reward part name (an ``info`` key) -> multiplier; the reward is
             ``sum(weight * info[part])``.
         seed: seeds the generator of conditions and starts (``None``: OS entropy, until a
@@ -60,6 +61,8 @@ class ConditionMixtureEnv(gym.Env):
             self._np_random, self._np_random_seed = seeding.np_random(seed)
         if not conditions:
             raise ValueError("ConditionMixtureEnv: conditions is empty")
+        self.plugin = get_simulator(simulator)
+        conditions = self.plugin.resolve_mixture(conditions, where="ConditionMixtureEnv")
         weights = np.array([float(w) for w in conditions.values()])
         if not (np.isfinite(weights).all() and (weights >= 0).all() and weights.sum() > 0):
             raise ValueError(
@@ -105,10 +108,9 @@ class ConditionMixtureEnv(gym.Env):
         if not self._checked_parts:
             missing = sorted(set(self.reward_weights) - set(info))
             if missing:
-                reported = sorted(k for k in info if k.startswith("reward_"))
                 raise KeyError(
                     f"reward_weights: the simulator reports no reward part(s) {missing}; "
-                    f"it reports {reported}"
+                    f"it declares {list(self.plugin.reward_parts)}"
                 )
             self._checked_parts = True
         return float(sum(w * float(info[part]) for part, w in self.reward_weights.items()))
@@ -121,15 +123,20 @@ class ConditionMixtureEnv(gym.Env):
             env.close()
 
     def _reported(self, info: dict) -> dict:
-        """``info`` plus the condition index; the keys TorchRL copies as float32 [1]."""
-        info = {**info, CONDITION_INDEX_KEY: self.condition_names.index(self.condition)}
+        """``info`` plus the condition index and ``success`` (from the simulator's declared
+        success key); the keys TorchRL copies as float32 [1]."""
+        info = {
+            **info,
+            SUCCESS_KEY: info.get(self.plugin.success_key, False),
+            CONDITION_INDEX_KEY: self.condition_names.index(self.condition),
+        }
         for key in info_keys(self.reward_weights):
             info[key] = np.array([float(info.get(key, 0.0))], dtype=np.float32)
         return info
 
 
 def info_keys(reward_weights: Mapping[str, float]) -> list[str]:
-    """``info`` entries copied into every step: success, condition index, reward parts."""
+    """Entries copied into every step: success, condition index, reward parts."""
     return [SUCCESS_KEY, CONDITION_INDEX_KEY, *reward_weights]
 
 

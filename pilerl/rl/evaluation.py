@@ -1,10 +1,10 @@
 """Closed-loop evaluation of a fine-tuning run: pooled success per condition group.
 
-A group pools several conditions into one success rate with a Wilson interval ("winter"
-= ``winter_a`` .. ``winter_d`` unless configured otherwise, the way the paper's winter
-tests mixed days). Episodes come from ``pilerl.evaluation.evaluator.evaluate`` on the actor
-in memory (or a saved one), so fine-tuned and cloned actors are compared on the same seeded
-starts.
+A group pools several conditions into one success rate with a Wilson interval (by
+default the simulator's declared groups: the pile loader's "winter" = A-D, the way the
+paper's winter tests mixed days). Episodes come from
+``pilerl.evaluation.evaluator.evaluate`` on the actor in memory (or a saved one), so
+fine-tuned and cloned actors are compared on the same seeded starts.
 """
 
 from __future__ import annotations

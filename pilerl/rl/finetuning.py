@@ -57,7 +57,7 @@ from pilerl.loggers import make_logger
 from pilerl.policies import CheckpointError, actor_policy, load_actor, save_actor
 
 from .collection import make_collector, restart_collection, sync_weights
-from .config import FinetuneConfig, PPOConfig, uses_demos
+from .config import FinetuneConfig, PPOConfig, resolve_simulator_words, uses_demos
 from .envs import TrainingEnvFactory
 from .evaluation import evaluate_groups, plot_success_curve, pool_groups
 from .ppo import PPOLearner
@@ -589,6 +589,7 @@ def finetune(config: FinetuneConfig, run_dir: str | Path, *, progress: bool = Tr
     Running again with the same ``run_dir`` resumes from ``last.ckpt``.
     """
     config.check_inputs()  # its settings were checked when it was built
+    config = resolve_simulator_words(config)  # groups, mixtures and reward parts by name
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     run = _Run(config, run_dir, progress=progress)

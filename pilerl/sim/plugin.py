@@ -1,13 +1,50 @@
-"""What a simulator plugin declares so that pilerl can find and build it by name."""
+"""What a simulator plugin declares: how pilerl builds it, and its words.
+
+A plugin's ``PLUGIN`` is a plain mapping (the plugin imports nothing from pilerl);
+``SimulatorPlugin.from_declaration`` checks it once, when the registry loads it. The core
+reads a simulator's words from here (sensor units and ranges, controls, conditions and
+their groups, reward parts, the ``info`` keys of success and fill) and never spells a
+plugin's own names. Heavy things (the env class, its options dataclass, its scripted
+expert) are named as ``module:attribute`` strings and imported only when used.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import importlib
+import math
 import re
-from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields
+from typing import Any
 
 _GYM_ID = re.compile(r"^[\w.-]+/[\w.-]+-v\d+$")
 _ENTRY_POINT = re.compile(r"^[\w.]+:[\w]+$")
+_NAME = re.compile(r"^[A-Za-z_][\w-]*$")
+
+ALL_CONDITIONS = "all"  # the group every simulator has: all its conditions, in declared order
+CHECK_PERIOD_S = 0.05  # control period [s] of the expert built only to check its options
+REQUIRED_FIELDS = ("name", "gym_id", "entry_point", "sensors", "controls", "conditions", "options")
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """One sensor a simulator declares.
+
+    Attributes:
+        unit: physical unit of the reading (``rad``, ``MPa``, ``m/s``...).
+        low, high: range of the reading, in ``unit``.
+    """
+
+    unit: str
+    low: float
+    high: float
+
+
+def resolve(reference: str) -> Any:
+    """The object named by ``module:attribute`` (imported now)."""
+    module, _, attribute = reference.partition(":")
+    return getattr(importlib.import_module(module), attribute)
 
 
 @dataclass(frozen=True)
@@ -15,28 +52,70 @@ class SimulatorPlugin:
     """A simulator, as seen by pilerl's core.
 
     Attributes:
-        name: registry name (``pile_loader``), what configs say.
+        name: registry name (``pile_loader``), what configs say (``env=pile_loader``).
         gym_id: Gymnasium id it is registered under, ``namespace/Name-vN``.
         entry_point: ``module:Class`` of the ``gymnasium.Env``; imported only on make.
+        sensors: sensor name -> ``SensorSpec`` (unit, low, high); the env's ``Dict``
+            observation has exactly these keys (in Gymnasium's order, sorted by name).
+        controls: names of the action's components, in order.
+        conditions: condition name -> one-line description; the env's constructor takes
+            ``condition=<name>``.
+        options: ``module:Class`` of a plain dataclass whose fields are the constructor's
+            keyword options (with their types and defaults); it includes ``condition``.
+            Configs may set exactly these.
+        condition_groups: group name -> member conditions (the pile loader: ``winter`` =
+            ``winter_a`` .. ``winter_d``); ``all`` is every condition and is implicit.
+        reward_parts: ``info`` keys of the named parts the reward is the sum of.
+        success_key: ``info`` key of the episode's success (a bool at the last step).
+        fill_key: ``info`` key of the episode's main score in [0, 1] (the pile loader's
+            bucket fill); ``None``: the success as 0 or 1.
+        scripted_expert: ``module:function`` building the scripted expert,
+            ``make_expert(*, dt, rng=None, **options)`` (see docs/simulator_plugins.md);
+            ``None``: no expert (nothing to record demonstrations with).
         description: one line for listings.
     """
 
     name: str
     gym_id: str
     entry_point: str
+    sensors: Mapping[str, SensorSpec]
+    controls: tuple[str, ...]
+    conditions: Mapping[str, str]
+    options: str
+    condition_groups: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    reward_parts: tuple[str, ...] = ()
+    success_key: str = "success"
+    fill_key: str | None = None
+    scripted_expert: str | None = None
     description: str = ""
 
     def __post_init__(self) -> None:
+        where = f"SimulatorPlugin({self.name!r})"
         if not _GYM_ID.match(self.gym_id):
-            raise ValueError(
-                f"SimulatorPlugin({self.name!r}).gym_id: expected "
-                f"'namespace/Name-vN', got {self.gym_id!r}"
-            )
-        if not _ENTRY_POINT.match(self.entry_point):
-            raise ValueError(
-                f"SimulatorPlugin({self.name!r}).entry_point: expected "
-                f"'module:Class', got {self.entry_point!r}"
-            )
+            raise ValueError(f"{where}.gym_id: expected 'namespace/Name-vN', got {self.gym_id!r}")
+        for key in ("entry_point", "options", "scripted_expert"):
+            value = getattr(self, key)
+            if value is not None and not (isinstance(value, str) and _ENTRY_POINT.match(value)):
+                raise ValueError(f"{where}.{key}: expected 'module:attribute', got {value!r}")
+        object.__setattr__(self, "sensors", _sensor_specs(self.sensors, f"{where}.sensors"))
+        object.__setattr__(self, "controls", _names(self.controls, f"{where}.controls"))
+        if not isinstance(self.conditions, Mapping):
+            raise ValueError(f"{where}.conditions: expected a mapping name -> description")
+        _names(list(self.conditions), f"{where}.conditions")
+        object.__setattr__(self, "conditions", {str(k): str(v) for k, v in self.conditions.items()})
+        groups = {}
+        for group, members in dict(self.condition_groups).items():
+            members = _names(members, f"{where}.condition_groups.{group}")
+            unknown = [m for m in members if m not in self.conditions]
+            if group in self.conditions or group == ALL_CONDITIONS or unknown:
+                raise ValueError(
+                    f"{where}.condition_groups.{group}: a group must not reuse a condition "
+                    f"name or {ALL_CONDITIONS!r}, and its members must be conditions "
+                    f"{list(self.conditions)}; unknown members {unknown}"
+                )
+            groups[str(group)] = members
+        object.__setattr__(self, "condition_groups", groups)
+        object.__setattr__(self, "reward_parts", _names(self.reward_parts, f"{where}.reward_parts"))
 
     @classmethod
     def from_declaration(cls, declaration: object, *, where: str) -> SimulatorPlugin:
@@ -45,12 +124,143 @@ class SimulatorPlugin:
             return declaration
         if not isinstance(declaration, Mapping):
             raise TypeError(f"{where}: PLUGIN must be a mapping, got {type(declaration).__name__}")
-        known = {f.name for f in fields(cls)}
-        missing = {"name", "gym_id", "entry_point"} - set(declaration)
-        unknown = set(declaration) - known
+        known = [f.name for f in fields(cls)]
+        missing = [k for k in REQUIRED_FIELDS if k not in declaration]
+        unknown = sorted(set(declaration) - set(known))
         if missing or unknown:
             raise ValueError(
-                f"{where}: PLUGIN missing fields {sorted(missing)}, "
-                f"unknown fields {sorted(unknown)}; expected {sorted(known)}"
+                f"{where}: PLUGIN missing fields {missing}, unknown fields {unknown}; "
+                f"expected {known} (docs/simulator_plugins.md)"
             )
-        return cls(**declaration)
+        try:
+            return cls(**declaration)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"{where}: {error}") from None
+
+    # ------------------------------------------------------------------ words
+    @property
+    def sensor_units(self) -> dict[str, str]:
+        """Sensor name -> unit, in declared order (what a dataset records)."""
+        return {name: spec.unit for name, spec in self.sensors.items()}
+
+    def groups(self) -> dict[str, tuple[str, ...]]:
+        """The declared condition groups plus ``all``."""
+        return {**self.condition_groups, ALL_CONDITIONS: tuple(self.conditions)}
+
+    def resolve_conditions(self, names: Sequence[str], *, where: str) -> tuple[str, ...]:
+        """Condition and group names -> condition names, groups expanded in their declared
+        order, each condition once; an unknown name fails listing the known ones."""
+        groups = self.groups()
+        resolved: list[str] = []
+        for name in names:
+            if name in self.conditions:
+                members: Sequence[str] = (name,)
+            elif name in groups:
+                members = groups[name]
+            else:
+                raise ValueError(
+                    f"{where}: unknown condition {name!r} (no condition or group of simulator "
+                    f"{self.name!r}); conditions {list(self.conditions)}, groups {list(groups)}"
+                )
+            resolved.extend(m for m in members if m not in resolved)
+        return tuple(resolved)
+
+    def resolve_mixture(self, weights: Mapping[str, float], *, where: str) -> dict[str, float]:
+        """A mixture {condition or group: weight} -> {condition: weight}: each member of a
+        group gets the group's weight; a condition named twice fails."""
+        mixture: dict[str, float] = {}
+        for name, weight in weights.items():
+            for condition in self.resolve_conditions([name], where=where):
+                if condition in mixture:
+                    raise ValueError(f"{where}: condition {condition!r} is weighted twice")
+                mixture[condition] = weight
+        return mixture
+
+    def pooled_groups(self) -> dict[str, tuple[str, ...]]:
+        """Default evaluation groups: each declared group, then each condition in no group
+        on its own (the pile loader: ``winter`` = A-D, then ``summer``)."""
+        grouped = {c for members in self.condition_groups.values() for c in members}
+        return {
+            **self.condition_groups,
+            **{c: (c,) for c in self.conditions if c not in grouped},
+        }
+
+    def score(self, info: Mapping[str, Any]) -> tuple[bool, float]:
+        """(success, fill) of an episode's last ``info``; fill is the success as 0/1 when
+        the simulator declares no fill key."""
+        success = bool(info[self.success_key])
+        fill = float(info[self.fill_key]) if self.fill_key else float(success)
+        return success, fill
+
+    # ------------------------------------------------------------------ options
+    def options_class(self) -> type:
+        """The plugin's options dataclass (imported now)."""
+        cls = resolve(self.options)
+        if not dataclasses.is_dataclass(cls):
+            raise TypeError(f"simulator {self.name!r}: options {self.options!r} is no dataclass")
+        return cls
+
+    def option_names(self) -> list[str]:
+        """The constructor options this simulator declares."""
+        return [f.name for f in fields(self.options_class())]
+
+    def check_options(self, options: Mapping[str, Any], *, where: str = "env") -> None:
+        """Raise ``ValueError`` naming any option this simulator does not declare, with the
+        list of the ones it does."""
+        known = self.option_names()
+        unknown = sorted(set(options) - set(known))
+        if unknown:
+            raise ValueError(
+                f"{where}: simulator {self.name!r} has no option(s) {unknown}; its options: {known}"
+            )
+
+    # ------------------------------------------------------------------ expert
+    def check_expert_options(self, options: Mapping[str, Any], *, where: str, drawn: bool) -> None:
+        """Build the expert once (nominal, or ``drawn`` from a seeded generator) so that
+        bad options fail now, naming ``where``."""
+        import numpy as np
+
+        rng = np.random.default_rng(0) if drawn else None
+        try:
+            self.make_expert(dt=CHECK_PERIOD_S, rng=rng, **dict(options))
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"{where}: {error}") from None
+
+    def make_expert(self, *, dt: float, rng=None, **options):
+        """The simulator's scripted expert (``make_expert`` of the plugin); ``rng=None``:
+        the nominal, deterministic one."""
+        if self.scripted_expert is None:
+            raise ValueError(
+                f"simulator {self.name!r} declares no scripted_expert: nothing can record "
+                "scripted demonstrations or run the scripted baseline in it"
+            )
+        return resolve(self.scripted_expert)(dt=dt, rng=rng, **options)
+
+
+def _names(values: object, where: str) -> tuple[str, ...]:
+    if isinstance(values, str) or not isinstance(values, Sequence):
+        raise ValueError(f"{where}: expected a list of names, got {values!r}")
+    names = tuple(str(v) for v in values)
+    bad = [n for n in names if not _NAME.match(n)]
+    if bad or len(set(names)) != len(names):
+        raise ValueError(f"{where}: names must be unique identifiers, got {list(names)}")
+    return names
+
+
+def _sensor_specs(sensors: object, where: str) -> dict[str, SensorSpec]:
+    if not isinstance(sensors, Mapping) or not sensors:
+        raise ValueError(f"{where}: expected a mapping name -> {{unit, low, high}}")
+    specs = {}
+    for name, spec in sensors.items():
+        _names([name], where)
+        if isinstance(spec, Mapping):
+            try:
+                spec = SensorSpec(str(spec["unit"]), float(spec["low"]), float(spec["high"]))
+            except (KeyError, TypeError, ValueError) as error:
+                raise ValueError(f"{where}.{name}: needs unit, low, high ({error!r})") from None
+        if not isinstance(spec, SensorSpec):
+            raise ValueError(f"{where}.{name}: expected {{unit, low, high}}, got {spec!r}")
+        if not (math.isfinite(spec.low) and math.isfinite(spec.high) and spec.low < spec.high):
+            raise ValueError(f"{where}.{name}: needs finite low < high, got {spec}")
+        specs[str(name)] = spec
+    return specs

@@ -6,9 +6,10 @@ A plugin package declares in its ``pyproject.toml``::
     my_sim = "my_package:PLUGIN"
 
 where ``PLUGIN`` is a mapping with the fields of :class:`~pilerl.sim.plugin.SimulatorPlugin`
-(name, gym_id, entry_point, description), so a plugin needs nothing from pilerl to declare
-itself. pilerl never imports a plugin's internals: it loads the declaration, registers
-``gym_id`` with Gymnasium, and lets Gymnasium import ``entry_point`` when an env is made.
+(name, gym_id, entry_point, its words, options and expert), so a plugin needs nothing from
+pilerl to declare itself. pilerl never imports a plugin's internals: it loads the
+declaration, registers ``gym_id`` with Gymnasium, and lets Gymnasium import
+``entry_point`` when an env is made.
 """
 
 from __future__ import annotations
@@ -43,6 +44,11 @@ def _plugins() -> dict[str, SimulatorPlugin]:
             )
         found[ep.name] = plugin
     return found
+
+
+def refresh_simulators() -> None:
+    """Read the installed plugins again (after installing one into a running process)."""
+    _plugins.cache_clear()
 
 
 def available_simulators() -> list[str]:

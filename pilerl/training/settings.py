@@ -13,10 +13,10 @@ from dataclasses import dataclass, field
 from omegaconf import MISSING
 
 from pilerl import checks
-from pilerl.config.schema import EnvConfig
 from pilerl.evaluation.settings import ClosedLoopConfig
 from pilerl.loggers import LoggerConfig
 from pilerl.policies.settings import PolicyConfig, SensorsConfig, check_controller
+from pilerl.sim.settings import EnvConfig
 
 from .bc import BCSettings
 
@@ -76,6 +76,7 @@ class TrainBCConfig:
         if self.trainer is not None:
             checks.one_of("trainer", self.trainer, TRAINERS)
         checks.positive_int("ensemble_seeds", self.ensemble_seeds)
+        self.evaluation.condition_names(self.env)
         if self.ensemble_seeds > 1 and self.evaluation.episodes > 0:
             raise ValueError(
                 "evaluation.episodes: an ensemble (ensemble_seeds > 1) has no one "
