@@ -473,6 +473,17 @@ def test_mapping_text_is_taken_as_written_not_as_an_interpolation():
     assert mapping.metadata.operator_id == "a\\${b}"
 
 
+def test_a_loaded_mapping_is_the_callers_own():
+    import yaml
+
+    data = yaml.safe_load(MAPPING_YAML)
+    first = mapping_from_dict(data)
+    first.sensors["boom_angle"].unit = "deg"
+    first.controls["boom"].aliases.append("u_boom")
+    again = mapping_from_dict(data)
+    assert again.sensors["boom_angle"].unit == "rad" and again.controls["boom"].aliases == []
+
+
 def test_mapping_must_fit_the_store(tmp_path, mapping):
     store = create_store(tmp_path / "ds", mapping)
     wrong_unit = log_mapping()
