@@ -5,6 +5,7 @@ Scoops are run by the scripted operator (tests/scoops.py) at fixed seeds.
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from scoops import EARLY_BOOM, NO_BOOM, SENSIBLE, drive_in, peak, run_scoop
@@ -171,3 +172,21 @@ def test_lifting_in_the_pile_raises_the_boom_pressure():
         lifting_buried = buried.sensors["boom_pressure"][62:70].mean()
         lifting_free = free.sensors["boom_pressure"][2:10].mean()
         assert lifting_buried > lifting_free + 3.0  # MPa
+
+
+def test_the_tyres_carry_the_machine_at_rest_and_the_telescope_reads_tank_pressure():
+    """Tyre springs hold the machine's weight (less the wheels' own); a lowered, empty
+    telescope is pulled by gravity, which its piston-side sensor must not read as a push."""
+    env = gym.make("pilerl/PileLoading-v0", sensor_noise=0.0).unwrapped
+    obs, _ = env.reset(seed=0)
+    for _ in range(5):
+        obs, *_ = env.step(np.zeros(3))
+    wheels_kg = 4 * 35.0
+    weight_n = (env.machine_mass_kg - wheels_kg) * 9.81
+    loads = env.machine.wheel_loads_n()
+    assert abs(loads.sum() - weight_n) < 0.02 * weight_n
+    assert loads[2] > 1.5 * loads[0]  # engine and counterweight on the rear axle
+    tank = env.machine.params.tank_pressure_mpa
+    assert obs["telescope_pressure"][0] == pytest.approx(tank, abs=1e-3)
+    assert env.data.actuator_force[env.machine.telescope_actuator] < 0  # the rod side holds
+    env.close()
