@@ -38,7 +38,7 @@ def test_on_ice_drive_pressure_saturates_lower_than_in_summer(summer_push, ice_p
     "relief each motor gives 732 N m, more than a light front tyre (2.5 kN load, mu 0.75) "
     "transmits, so in a summer push the front wheels spin too and the mean slip at the end "
     "of the push is no longer below the ice's. Left for the lead: see the sensors report.",
-    strict=False,
+    strict=True,
 )
 def test_on_ice_wheels_slip_while_pushing(summer_push, ice_push):
     assert ice_push[0].info["wheel_slip_m_s"] > 0.3
