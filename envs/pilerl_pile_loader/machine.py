@@ -301,7 +301,8 @@ class Machine:
         return float(vel[3:5] @ self.heading())
 
     def wheel_loads_n(self) -> np.ndarray:
-        """Normal load on each tyre [N], order fl, fr, rl, rr, from its radial spring."""
+        """Normal load on each tyre [N], order fl, fr, rl, rr, from its radial spring-damper
+        (the wheel's own weight not included)."""
         m, d = self.model, self.data
         deflection = d.qpos[self._tyre_q] - m.qpos_spring[self._tyre_q]
         return (
