@@ -51,10 +51,11 @@ class MachineParameters:
     telescope_bore_m: float = 0.050  # telescope cylinder bore [m]
     telescope_rod_m: float = 0.028  # telescope cylinder rod diameter [m]
     telescope_extension_m: float = 0.30  # held extension during a scoop [m]
-    # Hydrostatic transmission (HST): one pump, four wheel motors in parallel
+    # Hydrostatic transmission (HST): one pump; on each side the front and rear wheel
+    # motors in series, the two sides in parallel
     drive_relief_pressure_mpa: float = 25.0  # HST high-pressure relief [MPa]
     drive_charge_pressure_mpa: float = 2.0  # HST charge pressure, the low side [MPa]
-    wheel_motor_displacement_cm3: float = 200.0  # per wheel motor, per revolution [cm^3]
+    wheel_motor_displacement_cm3: float = 400.0  # per wheel motor, per revolution [cm^3]
     max_pump_angle_rad: float = 0.31  # swash-plate angle at full displacement (~18 deg) [rad]
     max_wheel_speed_rad_s: float = 6.9  # wheel speed at full pump flow, no load (~2 m/s)
     wheel_radius_m: float = 0.29  # tyre rolling radius [m]
@@ -117,8 +118,9 @@ class MachineParameters:
 
     @property
     def max_pump_flow_m3_s(self) -> float:
-        """Pump flow at full displacement [m^3/s]: four motors at ``max_wheel_speed_rad_s``."""
-        return 4 * self.motor_displacement_m3_rad * self.max_wheel_speed_rad_s
+        """Pump flow at full displacement [m^3/s]: both sides' series pairs (one motor's
+        flow each) at ``max_wheel_speed_rad_s``."""
+        return 2 * self.motor_displacement_m3_rad * self.max_wheel_speed_rad_s
 
     @property
     def max_drive_pressure_difference_pa(self) -> float:
@@ -133,8 +135,10 @@ class MachineParameters:
         return self.max_drive_pressure_difference_pa / leak_m3_s
 
     @property
-    def max_wheel_torque_nm(self) -> float:
-        """Wheel-motor torque at the HST relief pressure [N m]."""
+    def max_side_torque_nm(self) -> float:
+        """Torque of one side's series pair at the HST relief pressure [N m], shared by its
+        front and rear wheel as their grip allows (their pressure drops add up to the
+        loop's)."""
         return self.max_drive_pressure_difference_pa * self.motor_displacement_m3_rad
 
     @property
@@ -240,7 +244,8 @@ class Machine:
         Args:
             boom, bucket: valve openings in [-1, 1] (fraction of full flow; + raises / curls).
             pump_fraction: HST pump displacement in [-1, 1] (+ drives forward); the pump
-                flow goes to the four wheel motors in parallel.
+                flow goes to the two sides in parallel, through each side's front and rear
+                wheel motors in series.
         """
         p, d, s = self.params, self.data, self.speed_scale
         d.ctrl[self.boom_actuator] = boom * p.boom_max_speed_rad_s * s
@@ -301,7 +306,8 @@ class Machine:
         return float(vel[3:5] @ self.heading())
 
     def wheel_loads_n(self) -> np.ndarray:
-        """Normal load on each tyre [N], order fl, fr, rl, rr, from its radial spring."""
+        """Normal load on each tyre [N], order fl, fr, rl, rr, from its radial spring-damper
+        (the wheel's own weight not included)."""
         m, d = self.model, self.data
         deflection = d.qpos[self._tyre_q] - m.qpos_spring[self._tyre_q]
         return (
@@ -321,9 +327,10 @@ class Machine:
     def drive_pressure_mpa(self) -> float:
         """p_d: HST high-side pressure [MPa].
 
-        The four wheel motors sit in parallel on the loop, so they share one pressure
-        difference (the drive actuator's force); the high side reads it above the charge
-        pressure whichever way the loop is loaded (a shuttle valve picks the higher line).
+        The two sides' motor pairs sit in parallel on the loop, so they share one pressure
+        difference (the drive actuator's force), which a side's series front and rear motor
+        divide between them; the high side reads it above the charge pressure whichever way
+        the loop is loaded (a shuttle valve picks the higher line).
         """
         p = self.params
         loop_pa = abs(float(self.data.actuator_force[self.drive_actuator]))
