@@ -24,13 +24,12 @@ from pilerl.evaluation.stage import closed_loop_plan, evaluate_controller
 from pilerl.policies import controller_inputs
 from pilerl.recipe import Run, recipe
 from pilerl.rendering import resolve_videos
-from pilerl.training import BCSettings
 from pilerl.training.clone import (
     bc_objective,
+    bc_settings,
     clone,
     clone_ensemble,
     cloning_actor,
-    training_epochs,
 )
 
 log = logging.getLogger(__name__)
@@ -71,16 +70,11 @@ def main(config: TrainBCConfig, run: Run) -> dict[str, float]:
     )
     if config.evaluation.episodes > 0:  # a bad condition or env setting fails now
         plan = closed_loop_plan(config.evaluation, config.env)
-    epochs = training_epochs(
+    settings = bc_settings(
         policy.name,
-        config.trainer,
         rows=train.batch_size[0],
-        batch_size=config.batch_size,
         epochs=config.epochs,
         gradient_steps=config.gradient_steps,
-    )
-    settings = BCSettings(
-        epochs=epochs,
         batch_size=config.batch_size,
         learning_rate=config.learning_rate,
         seed=config.seed,

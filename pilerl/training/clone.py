@@ -46,22 +46,30 @@ def cloning_actor(
     )
 
 
-def training_epochs(
+def bc_settings(
     policy: str,
-    trainer: str | None,
     *,
     rows: int,
-    batch_size: int,
     epochs: int,
     gradient_steps: int | None,
-) -> int:
-    """``epochs``, or as many as give about ``gradient_steps`` steps (gradient training;
-    Levenberg-Marquardt rounds and a forest's fit keep ``epochs``)."""
-    if gradient_steps is None or (trainer or get_spec(policy).trainer) != "gradient":
-        return epochs
-    fitted = epochs_for_steps(rows, batch_size, gradient_steps)
-    log.info("gradient_steps=%d: %d epochs of %d rows", gradient_steps, fitted, rows)
-    return fitted
+    batch_size: int,
+    learning_rate: float,
+    seed: int,
+    trainer: str | None,
+) -> BCSettings:
+    """The training settings; ``gradient_steps`` (gradient training only) replaces
+    ``epochs`` by as many epochs of ``rows`` as give about that many steps, while
+    Levenberg-Marquardt rounds and a forest's fit keep ``epochs``."""
+    if gradient_steps is not None and (trainer or get_spec(policy).trainer) == "gradient":
+        epochs = epochs_for_steps(rows, batch_size, gradient_steps)
+        log.info("gradient_steps=%d: %d epochs of %d rows", gradient_steps, epochs, rows)
+    return BCSettings(
+        epochs=epochs,
+        batch_size=batch_size,
+        learning_rate=learning_rate,
+        seed=seed,
+        trainer=trainer,
+    )
 
 
 def clone(
