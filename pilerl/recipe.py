@@ -135,6 +135,11 @@ def recipe(
                 log.info("%s already finished: skipping (same settings and inputs)", finished)
                 return None if score is None else _recorded_objective(run.layout, score)
             if metrics is not None:
+                if not run.began:
+                    raise RuntimeError(
+                        f"{main.__name__}: returned metrics without run.begin(): a run is "
+                        "recorded (run.json) before it is marked done"
+                    )
                 finish_run(run.dir, metrics)
             return None if score is None or metrics is None else score(metrics)
 
@@ -154,7 +159,7 @@ def _to_object(cfg: DictConfig, schema: type | None) -> Any:
 
 def _run_dir(cfg: DictConfig) -> Path:
     """The config's ``output_dir`` where it has one, else Hydra's output directory."""
-    if "output_dir" in cfg:
+    if "output_dir" in cfg and not OmegaConf.is_missing(cfg, "output_dir"):
         return Path(cfg.output_dir)
     return Path(HydraConfig.get().runtime.output_dir)
 
