@@ -98,6 +98,16 @@ def test_usage_errors_exit_2_before_anything_is_written(tiny_recipe, tmp_path, c
     assert not RunLayout(run_dir).run_record.exists()
 
 
+def test_metrics_without_a_recorded_run_are_refused(tiny_recipe, tmp_path, capsys):
+    tiny_recipe.write_text(tiny_recipe.read_text().replace("    run.begin(inputs={})\n", ""))
+    run_dir = tmp_path / "run"
+    with pytest.raises(SystemExit) as exit_:
+        run_tiny(tiny_recipe, f"hydra.run.dir={run_dir}", f"output_dir={run_dir}")
+    assert exit_.value.code == 1
+    assert "returned metrics without run.begin()" in capsys.readouterr().err
+    assert not RunLayout(run_dir).done.exists()
+
+
 def test_run_layout_names_the_files_of_a_run_and_its_stages(tmp_path):
     layout = RunLayout(str(tmp_path))
     assert layout.run_record == tmp_path / "run.json"
