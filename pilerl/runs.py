@@ -34,9 +34,9 @@ from pathlib import Path
 from typing import Any
 
 from pilerl.io import write_text_atomic
-from pilerl.sweeps.completion import DONE_FILE, mark_done
+from pilerl.layout import RunLayout
+from pilerl.sweeps.completion import mark_done
 
-RUN_FILE = "run.json"
 HYDRA_FILES = ("config.yaml", "overrides.yaml", "hydra.yaml")
 # settings that change how a run goes, not what it computes (glob patterns on dotted keys)
 NOT_RESULTS = (
@@ -181,13 +181,14 @@ def begin_run(
     inputs, naming each differing key.
     """
     run_dir = Path(run_dir)
+    layout = RunLayout(run_dir)
     growable = tuple(growable)
     flat = {k: v for k, v in flatten(settings).items() if not _matches(k, NOT_RESULTS)}
     input_prints = {
         name: fingerprint_path(path) for name, path in (inputs or {}).items() if path is not None
     }
     recorded = read_run_record(run_dir)
-    if recorded is None and (run_dir / DONE_FILE).exists():
+    if recorded is None and layout.done.exists():
         raise RunMismatch(
             f"{run_dir}: finished by an older pilerl that did not record its settings; "
             "its results cannot be matched to this config: choose another run directory"
@@ -204,12 +205,12 @@ def begin_run(
             )
         budgets = [k for k in set(recorded["settings"]) | set(flat) if _matches(k, growable)]
         budgets_same = all(recorded["settings"].get(k) == flat.get(k) for k in budgets)
-        if (run_dir / DONE_FILE).exists():
+        if layout.done.exists():
             if budgets_same:
                 return True
-            (run_dir / DONE_FILE).unlink()  # a larger budget: unfinished until it ends again
+            layout.done.unlink()  # a larger budget: unfinished until it ends again
     run_dir.mkdir(parents=True, exist_ok=True)
-    for leftover in run_dir.glob(f".{Path(RUN_FILE).stem}.*{Path(RUN_FILE).suffix}"):
+    for leftover in run_dir.glob(f".{layout.run_record.stem}.*{layout.run_record.suffix}"):
         leftover.unlink(missing_ok=True)  # a temporary run.json of a killed write
     record = {
         "settings": flat,
@@ -219,7 +220,7 @@ def begin_run(
         "hydra_files": (recorded or {}).get("hydra_files") or _hydra_files(run_dir),
         "full_settings": dict(settings),
     }
-    write_text_atomic(run_dir / RUN_FILE, json.dumps(record, indent=1, default=str))
+    write_text_atomic(layout.run_record, json.dumps(record, indent=1, default=str))
     _CURRENT_RUN.clear()
     _CURRENT_RUN.update(record["provenance"], run_dir=str(run_dir), inputs=input_prints)
     return False
@@ -234,7 +235,7 @@ def finish_run(run_dir: str | Path, metrics: Mapping[str, float | int | bool]) -
 
 def read_run_record(run_dir: str | Path) -> dict[str, Any] | None:
     """``run.json`` of ``run_dir`` (``None`` when the directory has none)."""
-    path = Path(run_dir) / RUN_FILE
+    path = RunLayout(run_dir).run_record
     if not path.exists():
         return None
     try:
@@ -284,10 +285,7 @@ def _restore_hydra_files(run_dir: Path, recorded: dict) -> None:
         write_text_atomic(run_dir / ".hydra" / name, text)
 
 
-# ---------------------------------------------------------------------------- run layout
-BEST_CHECKPOINT = "best.pt"
-
-
+# ---------------------------------------------------------------------------- checkpoints
 def resolve_checkpoint(path: str | Path) -> Path:
     """A checkpoint file, or the ``best.pt`` inside a run directory passed instead.
 
@@ -295,12 +293,12 @@ def resolve_checkpoint(path: str | Path) -> Path:
     """
     path = Path(path)
     if path.is_dir():
-        best = path / BEST_CHECKPOINT
+        best = RunLayout(path).best_actor
         if best.is_file():
             return best
         found = sorted(p.name for p in path.glob("*.pt"))
         raise FileNotFoundError(
-            f"checkpoint={path}: a directory without {BEST_CHECKPOINT}; expected a checkpoint "
+            f"checkpoint={path}: a directory without {RunLayout.BEST_ACTOR}; expected a checkpoint "
             f"file or a train_bc / finetune run directory"
             + (f" (it holds {', '.join(found)})" if found else "")
         )

@@ -13,11 +13,7 @@ from __future__ import annotations
 
 import json
 import logging
-import sys
 from pathlib import Path
-
-import hydra
-from omegaconf import DictConfig, OmegaConf
 
 from pilerl.config import register_configs
 from pilerl.deploy.config import DeployConfig
@@ -26,32 +22,24 @@ from pilerl.deploy.hil import run_hil, runtime_kind, simulator_layout
 from pilerl.deploy.runtime import ControlRuntime
 from pilerl.io import write_text_atomic
 from pilerl.policies.checkpoint import warn_if_other_control_rate
-from pilerl.runtime import limit_threads
+from pilerl.recipe import recipe
 
 log = logging.getLogger(__name__)
 register_configs()
 HIL_KEYS = ("seed", "success", "fill_fraction", "steps", "late_commands")
 
 
-@hydra.main(config_path="../conf", config_name="deploy", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    limit_threads()
-    try:
-        config: DeployConfig = OmegaConf.to_object(
-            OmegaConf.merge(OmegaConf.structured(DeployConfig), cfg)
-        )
-        layout, control_hz = simulator_layout(config.env.simulator, config.env.make_kwargs())
-        controller = load_controller(
-            config.controller,
-            sensors=layout.names,
-            control_hz=control_hz,
-            simulator=config.env.simulator,
-        )
-        if Path(config.controller).suffix in (".pt", ".onnx"):  # they know their training rate
-            warn_if_other_control_rate(config.controller, control_hz)
-    except (ValueError, FileNotFoundError) as error:
-        log.error("%s", error)
-        sys.exit(2)
+@recipe("deploy", schema=DeployConfig, usage_errors=(ValueError, FileNotFoundError))
+def main(config: DeployConfig) -> None:
+    layout, control_hz = simulator_layout(config.env.simulator, config.env.make_kwargs())
+    controller = load_controller(
+        config.controller,
+        sensors=layout.names,
+        control_hz=control_hz,
+        simulator=config.env.simulator,
+    )
+    if Path(config.controller).suffix in (".pt", ".onnx"):  # they know their training rate
+        warn_if_other_control_rate(config.controller, control_hz)
     out_dir = Path(config.output_dir)
     settings = config.runtime_settings(control_hz)
 

@@ -13,36 +13,21 @@ and refused when they differ (``run.json``).
 
 from __future__ import annotations
 
-import logging
-from pathlib import Path
-
-import hydra
-from omegaconf import DictConfig, OmegaConf
-
 from pilerl.config import register_configs
-from pilerl.evaluation.closed_loop import run_closed_loop
-from pilerl.evaluation.evaluator import (
-    ActorController,
-    ScriptedController,
-    build_envs,
-    success_metrics,
-)
+from pilerl.evaluation.evaluator import ActorController, ScriptedController, success_metrics
 from pilerl.evaluation.settings import EvaluateConfig
+from pilerl.evaluation.stage import closed_loop_plan, evaluate_controller, success_rate
 from pilerl.policies import load_actor
+from pilerl.recipe import Run, recipe
 from pilerl.rendering import resolve_videos
-from pilerl.runs import begin_run, finish_run, resolve_checkpoint
-from pilerl.runtime import limit_threads
+from pilerl.runs import resolve_checkpoint
 
-log = logging.getLogger(__name__)
 register_configs()
 
 
-@hydra.main(config_path="../conf", config_name="evaluate", version_base="1.3")
-def main(cfg: DictConfig) -> float:
+@recipe("evaluate", objective="success_rate")
+def main(config: EvaluateConfig, run: Run) -> dict[str, float]:
     """Returns the success rate over every evaluated episode (a sweep objective)."""
-    limit_threads()
-    config: EvaluateConfig = OmegaConf.to_object(cfg)
-    out_dir = Path(config.output_dir)
     checkpoint = resolve_checkpoint(config.checkpoint) if config.checkpoint else None
     videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
     # --- the controller: a checkpoint (loaded once here, so a bad file fails now) or scripted
@@ -54,29 +39,15 @@ def main(cfg: DictConfig) -> float:
         load_actor(checkpoint)
         name = config.name or checkpoint.resolve().parent.name
         controller = ActorController(str(checkpoint), name=name)
-    plan = config.evaluation.plan(config.env)
-    build_envs(plan)  # a bad condition or env setting fails now, before anything is written
-    settings = OmegaConf.to_container(cfg, resolve=True)
-    if begin_run(out_dir, settings, inputs={"checkpoint": checkpoint}):
-        log.info("%s already finished: skipping (same settings)", out_dir)
-        return float("nan")
+    plan = closed_loop_plan(config.evaluation, config.env)  # a bad condition fails now
+    run.begin(inputs={"checkpoint": checkpoint})
 
     # --- episodes, summary, plots, videos
-    summary = run_closed_loop(
-        controller,
-        plan,
-        out_dir,
-        workers=config.evaluation.workers,
-        videos=videos,
-        video_conditions=config.evaluation.video_conditions,
-        render_size=(config.evaluation.render_height, config.evaluation.render_width),
+    summary = evaluate_controller(
+        controller, plan, config.evaluation, config.output_dir, videos=videos
     )
-    per_condition = [row for name, row in summary.items() if name in plan.conditions]
-    success_rate = sum(r["successes"] for r in per_condition) / sum(
-        r["episodes"] for r in per_condition
-    )
-    finish_run(out_dir, success_metrics(summary) | {"success_rate": success_rate})
-    return success_rate
+    rate = success_rate(summary, plan.conditions)
+    return success_metrics(summary) | {"success_rate": rate}
 
 
 if __name__ == "__main__":

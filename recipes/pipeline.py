@@ -20,150 +20,93 @@ import dataclasses
 import logging
 from pathlib import Path
 
-import hydra
-import torch
-from omegaconf import DictConfig, OmegaConf
-
 from pilerl.config import register_configs
 from pilerl.config.pipeline import PipelineConfig
-from pilerl.data import EpisodeStore, RecordingPlan, build_dataset, record_demonstrations
-from pilerl.evaluation import ActorController, run_closed_loop
-from pilerl.evaluation.evaluator import build_envs, success_metrics
-from pilerl.loggers import make_logger
-from pilerl.policies import NEURAL_CONTROLLERS, controller_inputs, make_actor
+from pilerl.data import EpisodeStore, RecordingPlan, build_dataset
+from pilerl.data.recording import record
+from pilerl.evaluation.evaluator import ActorController, success_metrics
+from pilerl.evaluation.stage import closed_loop_plan, evaluate_controller
+from pilerl.layout import RunLayout
+from pilerl.recipe import Run, recipe
 from pilerl.rendering import resolve_videos
 from pilerl.reports.pipeline import write_pipeline_report
 from pilerl.rl import finetune
-from pilerl.runs import begin_run, finish_run
-from pilerl.runtime import limit_threads
 from pilerl.sweeps import is_done, mark_done
-from pilerl.training import BCSettings, epochs_for_steps, train_bc
-from pilerl.training.plots import plot_losses
+from pilerl.training import BCSettings, epochs_for_steps
+from pilerl.training.clone import clone, cloning_actor
 
 log = logging.getLogger(__name__)
 register_configs()
 
 
-@hydra.main(config_path="../conf", config_name="pipeline", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    limit_threads()
-    config: PipelineConfig = OmegaConf.to_object(cfg)
-    out = Path(config.output_dir)
-    if config.policy.name not in NEURAL_CONTROLLERS:
-        raise ValueError(
-            f"policy: {config.policy.name!r} cannot be fine-tuned by RL (not differentiable); "
-            f"choose one of {list(NEURAL_CONTROLLERS)}"
-        )
+@recipe("pipeline")
+def main(config: PipelineConfig, run: Run) -> dict[str, float]:
     rl_config = dataclasses.replace(config.finetune, env=config.env)  # checked: fails now
-    plan = config.evaluation.plan(config.env)
-    build_envs(plan)  # a bad condition or env setting fails before any work
+    plan = closed_loop_plan(config.evaluation, config.env)  # so does a bad condition
     videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
-    bc_dir = Path(rl_config.checkpoint).parent
-    facts = {
-        "control_hz": config.env.control_hz,
-        "demonstrations_hz": config.demos.record_hz,
-        "sensors": config.sensors.s,
-        "attention_sensors": config.sensors.s_prime,
-    }
-    if begin_run(out, OmegaConf.to_container(cfg, resolve=True), **facts):
-        log.info("%s already finished: skipping (same settings)", out)
-        return
+    out, bc, rl = run.layout, RunLayout(Path(rl_config.checkpoint).parent), rl_config.output_dir
+    name, demos, sensors = config.policy.name, config.demos, config.sensors
+    run.begin(
+        control_hz=config.env.control_hz,
+        demonstrations_hz=demos.record_hz,
+        sensors=sensors.s,
+        attention_sensors=sensors.s_prime,
+    )
 
     # --- 1. demonstrations: summer (training) and winter_c (validation, figures)
-    summer = record(config, "summer", "drive_pressure", config.demos.episodes, out / "demos")
-    winter = record(
-        config, "winter_c", "telescope_pressure", config.demos.validation_episodes, out / "demos"
-    )
+    def demonstrations(condition: str, trigger: str, episodes: int) -> EpisodeStore:
+        env_kwargs = config.env.make_kwargs(condition=condition, control_hz=demos.record_hz)
+        recording = RecordingPlan(
+            config.env.simulator, env_kwargs, n_episodes=episodes, seed=demos.seed,
+            expert={"trigger_sensor": trigger, "mistake_rate": demos.mistake_rate},
+        )  # fmt: skip
+        description = f"scripted demonstrations, {condition}, {demos.record_hz:g} Hz"
+        where = out.sub("demos", condition).root
+        return record(where, recording, workers=demos.workers, description=description)
+
+    summer = demonstrations("summer", "drive_pressure", demos.episodes)
+    winter = demonstrations("winter_c", "telescope_pressure", demos.validation_episodes)
 
     # --- 2. D_II: the successful summer demonstrations at the recorded rate
-    if not (Path(rl_config.demos) / "index.json").exists():
-        build_dataset(summer, rl_config.demos, successful_only=True, rate_hz=None)
-    dataset = EpisodeStore.open(rl_config.demos)
+    dataset = build_dataset(summer, rl_config.demos, successful_only=True, rate_hz=None)
 
     # --- 3. behaviour cloning (resumes from bc/last.pt; a finished run returns at once)
-    torch.manual_seed(config.bc.seed)
-    sensors, attention = controller_inputs(
-        config.policy.name, config.sensors.s, config.sensors.s_prime
-    )
-    actor = make_actor(
-        config.policy.name,
-        sensors=sensors,
-        attention_sensors=attention,
-        stats=dataset.stats,
-        options=config.policy.options,
-    )
-    train = dataset.to_tensordict()
+    bc_config, train = config.bc, dataset.to_tensordict()
+    actor = cloning_actor(
+        name, sensors.s, sensors.s_prime, dataset.stats,
+        options=config.policy.options, seed=bc_config.seed,
+    )  # fmt: skip
     settings = BCSettings(
-        epochs=epochs_for_steps(len(train), config.bc.batch_size, config.bc.gradient_steps),
-        batch_size=config.bc.batch_size,
-        learning_rate=config.bc.learning_rate,
-        seed=config.bc.seed,
+        epochs=epochs_for_steps(len(train), bc_config.batch_size, bc_config.gradient_steps),
+        batch_size=bc_config.batch_size,
+        learning_rate=bc_config.learning_rate,
+        seed=bc_config.seed,
     )
-    logger = make_logger(config.logger.backend, bc_dir, experiment_name="bc")
-    _, history = train_bc(
-        actor, train, winter.to_tensordict(), settings, run_dir=bc_dir, logger=logger
-    )
-    plot_losses(history, bc_dir / "losses.png", title=f"{config.policy.name} on D_II")
+    clone(
+        actor, train, winter.to_tensordict(), settings, bc.root,
+        logger_backend=config.logger.backend, title=f"{name} on D_II",
+    )  # fmt: skip
 
     # --- 4. the cloned controller in closed loop
-    cloned = run_closed_loop(
-        ActorController(str(bc_dir / "best.pt"), name=f"{config.policy.name} (cloned)"),
-        plan,
-        out / "evaluation" / "cloned",
-        workers=config.evaluation.workers,
-    )
+    def closed_loop(actor_file: Path, label: str, where: str, videos: bool = False) -> dict:
+        controller = ActorController(str(actor_file), name=f"{name} ({label})")
+        where = out.sub("evaluation", where).root
+        return evaluate_controller(controller, plan, config.evaluation, where, videos=videos)
+
+    cloned = closed_loop(bc.best_actor, "cloned", "cloned")
 
     # --- 5. RL fine-tuning (resumes from its own checkpoint)
-    if not is_done(rl_config.output_dir):
-        results = finetune(rl_config, rl_config.output_dir)
-        mark_done(rl_config.output_dir, {"frames": results["frames"]})
+    if not is_done(rl):
+        mark_done(rl, {"frames": finetune(rl_config, rl)["frames"]})
 
     # --- 6. the fine-tuned controller on the same starts, with videos
-    finetuned = run_closed_loop(
-        ActorController(
-            str(Path(rl_config.output_dir) / "best.pt"), name=f"{config.policy.name} (RL)"
-        ),
-        plan,
-        out / "evaluation" / "finetuned",
-        workers=config.evaluation.workers,
-        videos=videos,
-        video_conditions=config.evaluation.video_conditions,
-        render_size=(config.evaluation.render_height, config.evaluation.render_width),
-    )
+    finetuned = closed_loop(RunLayout(rl).best_actor, "RL", "finetuned", videos=videos)
 
     # --- 7. the report
-    report = write_pipeline_report(
-        config, out, summer=summer, winter=winter, dataset=dataset, before=cloned, after=finetuned
-    )
+    stores = {"summer": summer, "winter": winter, "dataset": dataset}
+    report = write_pipeline_report(config, out.root, **stores, before=cloned, after=finetuned)
     log.info("report: %s", report)
-    finish_run(
-        out,
-        success_metrics(cloned, "cloned_") | success_metrics(finetuned, "finetuned_"),
-    )
-
-
-def record(
-    config: PipelineConfig, condition: str, trigger: str, episodes: int, root: Path
-) -> EpisodeStore:
-    """Scripted demonstrations in ``condition`` (resumes a partly recorded store)."""
-    env_kwargs = config.env.make_kwargs(condition=condition, control_hz=config.demos.record_hz)
-    plugin = config.env.plugin()
-    store = EpisodeStore.create(
-        root / condition,
-        sensors=plugin.sensor_units,
-        controls=list(plugin.controls),
-        description=f"scripted demonstrations, {condition}, {config.demos.record_hz:g} Hz",
-        exist_ok=True,
-    )
-    plan = RecordingPlan(
-        config.env.simulator,
-        env_kwargs,
-        n_episodes=episodes,
-        seed=config.demos.seed,
-        expert={"trigger_sensor": trigger, "mistake_rate": config.demos.mistake_rate},
-    )
-    record_demonstrations(store, plan, workers=config.demos.workers)
-    return store
+    return success_metrics(cloned, "cloned_") | success_metrics(finetuned, "finetuned_")
 
 
 if __name__ == "__main__":

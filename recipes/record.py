@@ -12,65 +12,36 @@ from __future__ import annotations
 
 import logging
 
-import hydra
-from hydra.core.hydra_config import HydraConfig
-from omegaconf import DictConfig, OmegaConf
-
 from pilerl.config import register_configs
-from pilerl.data import EpisodeStore, RecordingPlan, record_demonstrations
+from pilerl.data import RecordingPlan, record_demonstrations
+from pilerl.data.recording import open_demonstrations, recording_metrics
 from pilerl.data.settings import RecordConfig
-from pilerl.runs import begin_run, finish_run
-from pilerl.runtime import limit_threads
-from pilerl.sim import make_gym_env
+from pilerl.recipe import Run, recipe
 
 log = logging.getLogger(__name__)
 register_configs()
 
 
-@hydra.main(config_path="../conf", config_name="record", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    limit_threads()
-    config: RecordConfig = OmegaConf.to_object(cfg)
-    env_kwargs = config.env.make_kwargs(control_hz=config.record_hz)
-
-    make_gym_env(config.env.simulator, **env_kwargs).close()  # fail early: checks every option
-    plugin = config.env.plugin()
+@recipe("record")
+def main(config: RecordConfig, run: Run) -> dict[str, float]:
     plan = RecordingPlan(
         config.env.simulator,
-        env_kwargs,
+        config.env.make_kwargs(control_hz=config.record_hz),
         n_episodes=config.n_episodes,
         seed=config.seed,
         expert=config.expert,
     )
-    store = EpisodeStore.create(
-        config.out_dir,
-        sensors=plugin.sensor_units,
-        controls=list(plugin.controls),
-        description=f"scripted demonstrations, {env_kwargs['condition']}, {config.record_hz} Hz",
-        exist_ok=True,
-    )
-    plan_settings = OmegaConf.to_container(cfg, resolve=True)
-    plan_settings.pop("out_dir")  # the store itself
-    begin_run(config.out_dir, plan_settings, growable=["n_episodes"])
+    # --- the store (its env built first: a bad argument fails before anything is written)
+    description = f"scripted demonstrations, {config.env.condition}, {config.record_hz} Hz"
+    store = open_demonstrations(config.out_dir, plan, description=description)
+    plan_settings = {k: v for k, v in run.settings.items() if k != "out_dir"}  # the store itself
+    run.begin(run_dir=config.out_dir, settings=plan_settings, growable=["n_episodes"])
 
     # --- record (resumes)
     record_demonstrations(store, plan, workers=config.workers)
-    successes = sum(m.success for m in store.episodes)
-    log.info(
-        "%s: %d episodes, %d samples, %d successful",
-        config.out_dir,
-        len(store),
-        store.n_samples,
-        successes,
-    )
-    finish_run(
-        HydraConfig.get().runtime.output_dir,
-        {
-            "episodes": len(store),
-            "samples": store.n_samples,
-            "success_rate": successes / len(store),
-        },
-    )
+    metrics = recording_metrics(store)
+    log.info("%s: %s", config.out_dir, metrics)
+    return metrics
 
 
 if __name__ == "__main__":

@@ -14,9 +14,6 @@ from __future__ import annotations
 
 import logging
 
-import hydra
-from omegaconf import DictConfig, OmegaConf
-
 from pilerl.config import register_configs
 from pilerl.evaluation import plot_scoop, run_episode, write_mp4
 from pilerl.evaluation.episode import make_episode_env
@@ -24,19 +21,16 @@ from pilerl.evaluation.scoop_report import summarize, write_scoop_report, write_
 from pilerl.evaluation.settings import ScoopConfig
 from pilerl.evaluation.video import annotate_frames, sensor_ranges
 from pilerl.operators import OperatorModule, make_scripted_expert
+from pilerl.recipe import Run, recipe
 from pilerl.rendering import resolve_videos
-from pilerl.runs import begin_run, finish_run
-from pilerl.runtime import limit_threads
 from pilerl.sim.rollout import control_period_s
 
 log = logging.getLogger(__name__)
 register_configs()
 
 
-@hydra.main(config_path="../conf", config_name="scoop", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    limit_threads()
-    config: ScoopConfig = OmegaConf.to_object(cfg)
+@recipe("scoop")
+def main(config: ScoopConfig, run: Run) -> dict[str, float]:
     style = config.operator
     out_dir = config.output_dir
     video = resolve_videos(config.video, where="video")
@@ -55,9 +49,7 @@ def main(cfg: DictConfig) -> None:
         )
         for condition in config.conditions
     }
-    if begin_run(out_dir, OmegaConf.to_container(cfg, resolve=True)):
-        log.info("%s already finished: skipping (same settings)", out_dir)
-        return
+    run.begin()
 
     # --- one scripted scoop per condition
     for condition, env in envs.items():
@@ -85,15 +77,12 @@ def main(cfg: DictConfig) -> None:
         summaries, out_dir, seed=config.seed, figures=["scoop_signals.png"], videos=videos
     )
     log.info("report: %s", report)
-    finish_run(
-        out_dir,
-        {
-            f"{condition}_{key}": float(value)
-            for condition, summary in summaries.items()
-            for key, value in summary.items()
-            if key in ("fill_fraction", "success", "duration_s", "return", "spilled_kg")
-        },
-    )
+    return {
+        f"{condition}_{key}": float(value)
+        for condition, summary in summaries.items()
+        for key, value in summary.items()
+        if key in ("fill_fraction", "success", "duration_s", "return", "spilled_kg")
+    }
 
 
 if __name__ == "__main__":

@@ -14,25 +14,20 @@ import math
 import os
 import time
 
-import hydra
-from omegaconf import DictConfig, OmegaConf
-
 from pilerl.config import register_configs
 from pilerl.data import EpisodeMeta, EpisodeStore, record_episode
 from pilerl.data.recorder import recorded_info
 from pilerl.data.settings import TeleopConfig
 from pilerl.operators.keyboard import KeyboardOperator, close_viewer, key_bindings_text
-from pilerl.runtime import limit_threads
+from pilerl.recipe import recipe
 from pilerl.sim.rollout import make_rollout_env
 
 log = logging.getLogger(__name__)
 register_configs()
 
 
-@hydra.main(config_path="../conf", config_name="teleop", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    limit_threads()
-    config: TeleopConfig = OmegaConf.to_object(cfg)
+@recipe("teleop")
+def main(config: TeleopConfig) -> None:
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         raise SystemExit(
             "teleop needs a display (no DISPLAY or WAYLAND_DISPLAY is set); "

@@ -2,24 +2,34 @@
 
 from __future__ import annotations
 
+import io
 import json
 import os
+import runpy
 import subprocess
 import sys
+from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def run_recipe(script: str, *overrides: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    return subprocess.run(
-        [sys.executable, str(ROOT / "recipes" / script), *overrides],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=300,
-    )
+    """Run ``recipes/<script> <overrides>`` as its command line would, in this process (a
+    new interpreter would only import torch, TorchRL and MuJoCo again): its exit status,
+    and what it printed to stdout (Hydra's log) and stderr (errors, tracebacks)."""
+    argv = [str(ROOT / "recipes" / script), *overrides]
+    stdout, stderr = io.StringIO(), io.StringIO()
+    old_argv, status = sys.argv, 0
+    sys.argv = list(argv)
+    try:
+        with redirect_stdout(stdout), redirect_stderr(stderr):
+            runpy.run_path(argv[0], run_name="__main__")
+    except SystemExit as exit_:
+        status = exit_.code if isinstance(exit_.code, int) else int(exit_.code is not None)
+    finally:
+        sys.argv = old_argv
+    return subprocess.CompletedProcess(argv, status, stdout.getvalue(), stderr.getvalue())
 
 
 def test_scoop_recipe_writes_video_plot_trace_and_report(tmp_path):

@@ -5,9 +5,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -15,6 +13,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 from tensordict import TensorDict
+from test_recipes import run_recipe
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from pilerl.config import register_configs
@@ -264,14 +263,7 @@ def test_resume_refuses_a_different_run(cloned, tmp_path):
 
 
 def run_finetune_recipe(*overrides: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    return subprocess.run(
-        [sys.executable, str(ROOT / "recipes" / "finetune.py"), *overrides],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=300,
-    )
+    return run_recipe("finetune.py", *overrides)
 
 
 def test_finetune_recipe_td3bc_smoke_run_over_two_curriculum_stages(cloned, tmp_path):

@@ -6,8 +6,8 @@ import json
 
 import pytest
 
+from pilerl.layout import RunLayout
 from pilerl.runs import (
-    RUN_FILE,
     RunMismatch,
     begin_run,
     fingerprint_path,
@@ -21,7 +21,7 @@ SETTINGS = {"policy": {"name": "nnetv2"}, "epochs": 3, "workers": 2, "output_dir
 
 def test_a_new_run_records_settings_and_provenance(tmp_path):
     assert begin_run(tmp_path, SETTINGS, control_hz=20.0) is False
-    record = json.loads((tmp_path / RUN_FILE).read_text())
+    record = json.loads(RunLayout(tmp_path).run_record.read_text())
     assert record["settings"] == {"policy.name": "nnetv2", "epochs": 3}  # workers: not results
     provenance = record["provenance"]
     assert provenance["packages"]["torch"].startswith("2.13")
@@ -165,4 +165,4 @@ def test_collection_settings_count_and_evaluation_workers_do_not(tmp_path):
 def test_a_killed_run_record_write_leaves_nothing_behind(tmp_path):
     (tmp_path / ".run.abc123.json").write_text("{")  # what a kill mid-write leaves
     begin_run(tmp_path, SETTINGS)
-    assert sorted(p.name for p in tmp_path.iterdir()) == [RUN_FILE]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [RunLayout.RUN_RECORD]

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import torch
 import yaml
+from test_recipes import run_recipe
 
 from pilerl.policies import load_actor, make_actor
 from pilerl.training import BCSettings, train_bc, train_bc_ensemble, validation_loss
@@ -26,14 +24,7 @@ def train_bc_recipe(*overrides: str, data_root: Path | None = None):
         if data_root is None
         else [f"train_data={data_root / 'd_i'}", f"validation_data={data_root / 'winter'}"]
     )
-    args = [sys.executable, str(ROOT / "recipes" / "train_bc.py"), *overrides, *data]
-    return subprocess.run(
-        args,
-        capture_output=True,
-        text=True,
-        env={**os.environ, "OMP_NUM_THREADS": "1"},
-        timeout=300,
-    )
+    return run_recipe("train_bc.py", *overrides, *data)
 
 
 def test_bc_lowers_the_validation_loss(datasets):

@@ -6,7 +6,7 @@ Each room owns its settings (a dataclass checked in ``__post_init__``):
 ``pilerl.loggers``; the simulator's ``EnvConfig`` is in ``pilerl.sim.settings``. The YAML
 files under conf/ extend the stored schemas, so a wrong type or an unknown key fails when
 Hydra composes a config, and they state only what differs from the dataclasses' defaults.
-``pipeline.py`` composes the main job's config. See docs/architecture.md. """
+``pipeline.py`` composes the main job's config. See docs/architecture.md."""
 
 from __future__ import annotations
 

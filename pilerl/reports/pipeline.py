@@ -11,6 +11,7 @@ from pathlib import Path
 
 from pilerl.data import EpisodeStore
 from pilerl.evaluation.metrics import wilson_interval
+from pilerl.layout import RunLayout
 
 from . import paper_numbers
 from .document import Report
@@ -102,7 +103,7 @@ def write_pipeline_report(
     report.image("evaluation/finetuned/fill.png", "Fine-tuned: fill fraction per episode")
 
     report.heading("RL fine-tuning")
-    results_file = out / "finetune" / "results.json"
+    results_file = RunLayout(out).sub("finetune").results
     if results_file.exists():
         results = json.loads(results_file.read_text())
         fps = results.get("collection_fps")
@@ -120,7 +121,10 @@ def write_pipeline_report(
     add_controller_figures(
         report,
         out,
-        actors={"cloned": out / "bc" / "best.pt", "fine-tuned": out / "finetune" / "best.pt"},
+        actors={
+            "cloned": RunLayout(out).sub("bc").best_actor,
+            "fine-tuned": RunLayout(out).sub("finetune").best_actor,
+        },
         demos=Path(winter.root),
         episodes=len(winter),
         control_hz=config.env.control_hz,

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from pilerl.evaluation.metrics import wilson_interval
+from pilerl.layout import RunLayout
 from pilerl.runs import read_run_settings
 from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
 from pilerl.sweeps.hydra_record import HYDRA_DIR, job_directories, read_choices, read_config
@@ -150,7 +151,7 @@ def offline_validation_curves(sweep_dir: str | Path) -> list[LossCurves]:
                 controller=setup.controller,
                 sensors=setup.sensors,
                 dataset=setup.dataset,
-                seeds=int(json.loads((job_dir / "metrics.json").read_text())["seeds"]),
+                seeds=int(json.loads(RunLayout(job_dir).metrics.read_text())["seeds"]),
                 epoch=np.array([float(r["epoch"]) for r in rows]),
                 steps_per_epoch=_steps_per_epoch(setup.config),
                 validation_mean=np.array([float(r["validation_mean"]) for r in rows]),

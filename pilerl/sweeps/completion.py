@@ -15,9 +15,10 @@ import time
 from pathlib import Path
 
 from pilerl.io import write_text_atomic
+from pilerl.layout import RunLayout
 
-METRICS_FILE = "metrics.json"
-DONE_FILE = "done.json"
+METRICS_FILE = RunLayout.METRICS
+DONE_FILE = RunLayout.DONE
 
 
 def is_done(run_dir: str | Path) -> bool:

@@ -31,6 +31,7 @@ from tensordict.nn import TensorDictModule
 from torchrl.objectives import BCLoss
 from tqdm import tqdm
 
+from pilerl.layout import RunLayout
 from pilerl.policies import actor_policy, policy_actor, save_actor
 from pilerl.policies.actors import RandomForestActor
 from pilerl.policies.checkpoint import actor_config_from_json, rebuild_policy
@@ -150,9 +151,9 @@ def train_bc(
     optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
     history: list[dict] = []
     best = math.inf
-    run_dir = Path(run_dir) if run_dir is not None else None
-    if run_dir is not None and (run_dir / "last.pt").exists():
-        policy, optimizer, history, best = _resume(run_dir / "last.pt", settings, policy.config)
+    layout = RunLayout(run_dir) if run_dir is not None else None
+    if layout is not None and layout.bc_state.exists():
+        policy, optimizer, history, best = _resume(layout.bc_state, settings, policy.config)
         actor = policy_actor(policy)
     loss_module = BCLoss(actor, loss_function="mse")
     lm_inputs = policy.controller_inputs(train)[0] if trainer == "levenberg_marquardt" else None
@@ -196,11 +197,11 @@ def train_bc(
         history.append(row)
         _log(logger, row)
         score = row.get("validation_loss", row["train_loss"])
-        if run_dir is not None:
+        if layout is not None:
             if score < best:
-                save_actor(run_dir / "best.pt", policy)
+                save_actor(layout.best_actor, policy)
             best = min(best, score)
-            _save_run(run_dir / "last.pt", policy, optimizer, history, best, settings)
+            _save_run(layout.bc_state, policy, optimizer, history, best, settings)
         bar.set_postfix({k: f"{v:.4g}" for k, v in row.items() if k != "epoch"})
     bar.close()
     policy.eval()
@@ -221,7 +222,7 @@ def _fit_forest(
         row["validation_loss"] = validation_loss(actor, validation)
     _log(logger, row)
     if run_dir is not None:
-        save_actor(Path(run_dir) / "best.pt", actor)
+        save_actor(RunLayout(run_dir).best_actor, actor)
     return actor, [row]
 
 

@@ -1,0 +1,132 @@
+"""The behaviour-cloning stage: a controller cloned from a dataset, with its loss plots.
+
+``recipes/train_bc.py`` and the pipeline's cloning step both call these:
+:func:`cloning_actor` builds the untrained controller (its initial weights drawn from the
+seed), :func:`clone` trains it into a run directory (``best.pt``, ``last.pt``,
+``losses.png``, the logger's files; an interrupted run resumes from ``last.pt``), and
+:func:`clone_ensemble` trains many seeds at once for the curves of the paper's Fig. 4.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from pathlib import Path
+
+import torch
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule
+
+from pilerl.layout import RunLayout
+from pilerl.loggers import make_logger
+from pilerl.policies import controller_inputs, get_spec, make_actor
+
+from .bc import BCSettings, epochs_for_steps, train_bc
+from .ensemble import train_bc_ensemble, write_ensemble_curves
+from .plots import plot_ensemble, plot_losses
+
+log = logging.getLogger(__name__)
+
+
+def cloning_actor(
+    policy: str,
+    sensors: Sequence[str],
+    attention_sensors: Sequence[str] | None,
+    stats: dict,
+    *,
+    options: dict | None = None,
+    seed: int,
+) -> TensorDictModule:
+    """The untrained controller ``policy`` reading the sensor set (s, s'), normalised by
+    the dataset's ``stats``; its initial weights are drawn from ``seed``."""
+    torch.manual_seed(seed)
+    inputs, attention = controller_inputs(policy, sensors, attention_sensors)
+    return make_actor(
+        policy, sensors=inputs, stats=stats, attention_sensors=attention, options=options
+    )
+
+
+def bc_settings(
+    policy: str,
+    *,
+    rows: int,
+    epochs: int,
+    gradient_steps: int | None,
+    batch_size: int,
+    learning_rate: float,
+    seed: int,
+    trainer: str | None,
+) -> BCSettings:
+    """The training settings; ``gradient_steps`` (gradient training only) replaces
+    ``epochs`` by as many epochs of ``rows`` as give about that many steps, while
+    Levenberg-Marquardt rounds and a forest's fit keep ``epochs``."""
+    if gradient_steps is not None and (trainer or get_spec(policy).trainer) == "gradient":
+        epochs = epochs_for_steps(rows, batch_size, gradient_steps)
+        log.info("gradient_steps=%d: %d epochs of %d rows", gradient_steps, epochs, rows)
+    return BCSettings(
+        epochs=epochs,
+        batch_size=batch_size,
+        learning_rate=learning_rate,
+        seed=seed,
+        trainer=trainer,
+    )
+
+
+def clone(
+    actor: TensorDictModule,
+    train: TensorDict,
+    validation: TensorDict | None,
+    settings: BCSettings,
+    run_dir: str | Path,
+    *,
+    logger_backend: str,
+    title: str,
+) -> tuple[TensorDictModule, dict[str, float | int]]:
+    """Train ``actor`` into ``run_dir``; returns (the trained actor, the run's metrics:
+    epochs, final training loss and, with validation data, the final and best validation
+    losses)."""
+    layout = RunLayout(run_dir)
+    logger = make_logger(logger_backend, layout.root, experiment_name="bc")
+    actor, history = train_bc(
+        actor, train, validation, settings, run_dir=layout.root, logger=logger
+    )
+    plot_losses(history, layout.losses_plot, title=title)
+    final = history[-1]
+    metrics = {"epochs": final["epoch"], "train_loss": final["train_loss"]}
+    if "validation_loss" in final:
+        metrics["validation_loss"] = final["validation_loss"]
+        metrics["best_validation_loss"] = min(row["validation_loss"] for row in history)
+    return actor, metrics
+
+
+def clone_ensemble(
+    actor: TensorDictModule,
+    seeds: Sequence[int],
+    train: TensorDict,
+    validation: TensorDict | None,
+    settings: BCSettings,
+    run_dir: str | Path,
+    *,
+    title: str,
+) -> dict[str, float | int]:
+    """Train ``actor``'s architecture from each of ``seeds`` at once; writes
+    ``ensemble.png`` and ``ensemble_curves.csv``; returns the final losses' mean and std."""
+    run_dir = Path(run_dir)
+    result = train_bc_ensemble(actor.module.config, list(seeds), train, validation, settings)
+    plot_ensemble(result.train_loss, result.validation_loss, run_dir / "ensemble.png", title=title)
+    write_ensemble_curves(result, run_dir / "ensemble_curves.csv")
+    final = result.train_loss if result.validation_loss is None else result.validation_loss
+    return {
+        "seeds": len(seeds),
+        "final_loss_mean": float(final[:, -1].mean()),
+        "final_loss_std": float(final[:, -1].std()),
+    }
+
+
+def bc_objective(metrics: dict) -> float:
+    """The best validation loss, else the final training loss (or an ensemble's mean final
+    loss): what the Optuna sweeper of ``recipes/train_bc.py`` minimises."""
+    for key in ("best_validation_loss", "train_loss", "final_loss_mean"):
+        if key in metrics:
+            return float(metrics[key])
+    raise KeyError("best_validation_loss")
