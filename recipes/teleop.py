@@ -10,7 +10,6 @@ Space stops all. Needs a display (the viewer is an interactive window).
 from __future__ import annotations
 
 import logging
-import math
 import os
 import time
 
@@ -64,6 +63,7 @@ def main(config: TeleopConfig) -> None:
 
         for index in range(config.episodes):
             episode, start, final = record_episode(env, Paced(), seed=config.seed + index)
+            success, fill = config.env.plugin().score(final)
             meta = store.append(
                 episode,
                 EpisodeMeta(
@@ -72,8 +72,8 @@ def main(config: TeleopConfig) -> None:
                     condition=config.env.condition,
                     soil=config.env.soil,
                     operator={"id": config.operator_id, "kind": "teleop"},
-                    fill_fraction=float(final.get("fill_fraction", math.nan)),
-                    success=bool(final.get("success", False)),
+                    fill_fraction=fill,
+                    success=success,
                     seed=config.seed + index,
                     start={k: float(v) for k, v in start.items() if k.startswith("start_")},
                 ),

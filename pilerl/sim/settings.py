@@ -60,8 +60,16 @@ class EnvConfig:
             raise ValueError(f"env.simulator: {error}") from None
 
     def options(self) -> dict[str, Any]:
-        """The declared options set here (none in the base class)."""
-        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "simulator"}
+        """The declared options set here (none in the base class). A key added beside them
+        (Hydra's ``+env.<key>=...`` lands as an attribute) fails with the declared ones."""
+        names = [f.name for f in fields(self)]
+        added = sorted(set(vars(self)) - set(names))
+        if added:
+            raise ValueError(
+                f"env: simulator {self.simulator!r} has no option(s) {added}; "
+                f"its options: {self.plugin().option_names()}"
+            )
+        return {name: getattr(self, name) for name in names if name != "simulator"}
 
     def make_kwargs(self, **overrides) -> dict[str, Any]:
         """Keyword arguments for ``pilerl.sim.make_gym_env`` (simulator name excluded):
@@ -110,6 +118,8 @@ def settings_class(name: str) -> type[EnvConfig]:
     hints = typing.get_type_hints(options)
     specs: list[tuple[str, Any, Any]] = [("simulator", str, field(default=name))]
     for option in fields(options):
+        if option.name == "simulator":
+            raise TypeError(f"simulator {name!r}: an option must not be called 'simulator'")
         if option.default is not dataclasses.MISSING:
             default = field(default=option.default)
         elif option.default_factory is not dataclasses.MISSING:
