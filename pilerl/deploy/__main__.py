@@ -18,12 +18,16 @@ import json
 import sys
 
 from pilerl.runtime import limit_threads
+from pilerl.sim.settings import settings_class
 
 from .config import DeployConfig, HilConfig, RuntimeConfig
 
 RUNTIME = RuntimeConfig()
 HIL = HilConfig()
-ENV = next(f for f in dataclasses.fields(DeployConfig) if f.name == "env").default_factory()
+# the deploy settings' simulator, with its declared options' defaults (control_hz ...)
+ENV = settings_class(
+    next(f for f in dataclasses.fields(DeployConfig) if f.name == "env").default_factory().simulator
+)()
 CLI_RUN_DIR = "outputs/deploy/cli"
 
 
