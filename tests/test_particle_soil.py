@@ -260,3 +260,9 @@ def test_packed_bucket_fill_approaches_the_rated_capacity_with_resolution(env, d
     coarse, fine = env.unwrapped.soil, default_env.unwrapped.soil
     assert coarse.packed_bucket_fill < fine.packed_bucket_fill <= 1.0
     assert fine.packed_bucket_fill > 0.85
+
+
+@pytest.mark.parametrize("bad", [0.5, 13.0, float("nan"), True, "6"])
+def test_impossible_resolution_fails_naming_the_option(bad):
+    with pytest.raises(ValueError, match="mouth_grains"):
+        gym.make("pilerl/PileLoading-v0", soil="particles", soil_options={"mouth_grains": bad})

@@ -148,7 +148,7 @@ class ParticleSoil(SoilModel):
         """Options (``soil_options`` of the env), the resolution:
 
         - ``mouth_grains``: grain diameters across the bucket mouth (cutting edge to lip);
-          sets the grain radius. The default 6 gives 5.3 cm grains.
+          sets the grain size. The default 6 gives grains of 10.7 cm diameter.
         - ``max_particles``: a cap on the moving grains; while the zone would hold more,
           the radius grows (so the mouth spans fewer grains than asked).
         """
@@ -157,7 +157,9 @@ class ParticleSoil(SoilModel):
             raise ValueError(
                 f"ParticleSoil.max_particles: must be an int in [20, 5000], got {max_particles!r}"
             )
-        if not (isinstance(mouth_grains, int | float) and 1.0 <= mouth_grains <= 12.0):
+        if isinstance(mouth_grains, bool) or not (
+            isinstance(mouth_grains, int | float) and 1.0 <= mouth_grains <= 12.0
+        ):
             raise ValueError(
                 f"ParticleSoil.mouth_grains: must be a number in [1, 12], got {mouth_grains!r}"
             )
