@@ -22,6 +22,7 @@ particle pile, and the same N seeded starts on the heightfield pile. Per row:
 
     python benchmarks/particle_resolution.py                       # 4, 6, 8 grains, 4 seeds
     python benchmarks/particle_resolution.py --mouth-grains 6 --seeds 2
+    python benchmarks/particle_resolution.py --solver-iterations 20
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
+from pilerl_pile_loader.soil.particles import SOLVER_ITERATIONS  # noqa: E402
 
 import pilerl  # noqa: E402,F401  (registers pilerl/PileLoading-v0)
 
@@ -111,6 +113,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--mouth-grains", type=float, nargs="+", default=[4.0, 6.0, 8.0])
     parser.add_argument("--seeds", type=int, default=4, help="seeded scoops per row")
+    parser.add_argument(
+        "--solver-iterations", type=int, default=None, help="CG iterations (default: the soil's)"
+    )
     args = parser.parse_args()
     seeds = list(range(args.seeds))
 
@@ -125,10 +130,15 @@ def main() -> None:
         f"{'p/hf':>5} {'hf mouth':>8} {'p/mouth':>7} {'packed':>6} {'rt p':>5} {'rt hf':>6} "
         f"{'rt p/hf':>7} {'wall p':>6} {'build s':>7}  fills p"
     )
+    iterations = args.solver_iterations or SOLVER_ITERATIONS
+    print(f"particles, {iterations} CG iterations per physics step")
     print(header)
     print("-" * len(header))
     for grains in args.mouth_grains:
-        p, build_s, env = run_scoops(seeds, soil="particles", soil_options={"mouth_grains": grains})
+        options = {"mouth_grains": grains}
+        if args.solver_iterations is not None:
+            options["solver_iterations"] = args.solver_iterations
+        p, build_s, env = run_scoops(seeds, soil="particles", soil_options=options)
         soil = env.unwrapped.soil
         count = f"{soil.n_particles}+{len(soil.core)}"
         print(

@@ -262,7 +262,18 @@ def test_packed_bucket_fill_approaches_the_rated_capacity_with_resolution(env, d
     assert fine.packed_bucket_fill > 0.85
 
 
-@pytest.mark.parametrize("bad", [0.5, 13.0, float("nan"), True, "6"])
-def test_impossible_resolution_fails_naming_the_option(bad):
-    with pytest.raises(ValueError, match="mouth_grains"):
-        gym.make("pilerl/PileLoading-v0", soil="particles", soil_options={"mouth_grains": bad})
+@pytest.mark.parametrize(
+    ("option", "bad"),
+    [
+        ("mouth_grains", 0.5),
+        ("mouth_grains", 13.0),
+        ("mouth_grains", float("nan")),
+        ("mouth_grains", True),
+        ("mouth_grains", "6"),
+        ("solver_iterations", 0),
+        ("solver_iterations", 2.5),
+    ],
+)
+def test_impossible_resolution_fails_naming_the_option(option, bad):
+    with pytest.raises(ValueError, match=option):
+        gym.make("pilerl/PileLoading-v0", soil="particles", soil_options={option: bad})

@@ -48,16 +48,15 @@ used), so a seed fixes the whole episode.
 **Solver** (global MuJoCo options, so the machine's own contacts use them too). The
 grains touching each other and the bucket form one contact island that Newton's
 factorisation makes far too slow (a scoop at the default resolution did not finish in
-5 min), so this model uses CG with a pyramidal friction cone and ``SOLVER_ITERATIONS``
-iterations, the solver's largest cost. 14 iterations keep a scripted scoop at the default
-resolution near real time on one core (20: about 0.65x); the price is in the machine's
-forces: driving and lifting in free air, the drive pressure deviates from the default
-Newton solver by 0.22 MPa on average (20 iterations: 0.14 MPa; about 4 MPa mean), with
-transient peaks of up to 3 MPa, while angles agree to 1e-3 rad. In the pile the cap
-leaves contact forces unconverged (against a converged solve the drive pressure reads
-~15 % and the telescope pressure up to ~40 % low, measured at 20 iterations), so this
-model cross-checks fills, penetration and scoop times rather than pressures. MuJoCo's
-body sleeping freezes a resting pile, so driving up to it costs almost nothing.
+5 min), so this model uses CG with a pyramidal friction cone and ``solver_iterations``
+iterations (default ``SOLVER_ITERATIONS``), the largest cost of a step. Driving and lifting
+in free air, the machine then matches the default Newton solver to a few per cent (drive
+pressure 0.14 MPa off on average, of about 4 MPa; 14 iterations: 0.22 MPa, 10: 0.76 MPa).
+In the pile the cap leaves contact forces unconverged (against a converged solve the
+drive pressure reads ~15 % and the telescope pressure up to ~40 % low), and the fill
+depends on it too (docs/soil_models.md): fewer iterations run faster but are not a
+cheaper version of the same pile. MuJoCo's body sleeping freezes a resting pile, so
+driving up to it costs almost nothing.
 
 **Tallies** (every ``update``; particle counts times the particle mass):
 
@@ -110,7 +109,7 @@ BUCKET_GEOMS = ("bucket_floor", "bucket_back", "bucket_top", "bucket_side_l", "b
 # ---- solver (global options; see module docstring)
 SOLVER = mujoco.mjtSolver.mjSOL_CG
 CONE = mujoco.mjtCone.mjCONE_PYRAMIDAL
-SOLVER_ITERATIONS = 14
+SOLVER_ITERATIONS = 20
 SOLVER_LS_ITERATIONS = 10
 SOLVER_TOLERANCE = 1e-6
 ARENA_BYTES_PER_GRAIN = 24_000  # MuJoCo's arena (contacts, constraint rows) per sphere [B]
@@ -144,6 +143,7 @@ class ParticleSoil(SoilModel):
         *,
         max_particles: int = MAX_PARTICLES,
         mouth_grains: float = MOUTH_GRAINS,
+        solver_iterations: int = SOLVER_ITERATIONS,
     ) -> None:
         """Options (``soil_options`` of the env), the resolution:
 
@@ -151,6 +151,9 @@ class ParticleSoil(SoilModel):
           sets the grain size. The default 6 gives grains of 10.7 cm diameter.
         - ``max_particles``: a cap on the moving grains; while the zone would hold more,
           the radius grows (so the mouth spans fewer grains than asked).
+        - ``solver_iterations``: MuJoCo's CG iterations per physics step (global: the
+          machine's contacts too); fewer run faster but leave contact forces, and with
+          them the fill, less converged (docs/soil_models.md).
         """
         super().__init__(material, pile, bucket)
         if not (isinstance(max_particles, int) and 20 <= max_particles <= 5000):
@@ -163,8 +166,16 @@ class ParticleSoil(SoilModel):
             raise ValueError(
                 f"ParticleSoil.mouth_grains: must be a number in [1, 12], got {mouth_grains!r}"
             )
+        if isinstance(solver_iterations, bool) or not (
+            isinstance(solver_iterations, int) and 1 <= solver_iterations <= 1000
+        ):
+            raise ValueError(
+                "ParticleSoil.solver_iterations: must be an int in [1, 1000], "
+                f"got {solver_iterations!r}"
+            )
         self.max_particles = max_particles
         self.mouth_grains = float(mouth_grains)
+        self.solver_iterations = solver_iterations
 
     @property
     def mouth_length_m(self) -> float:
@@ -239,7 +250,7 @@ class ParticleSoil(SoilModel):
         option = spec.option
         option.solver = SOLVER
         option.cone = CONE
-        option.iterations = SOLVER_ITERATIONS
+        option.iterations = self.solver_iterations
         option.ls_iterations = SOLVER_LS_ITERATIONS
         option.tolerance = SOLVER_TOLERANCE
         option.noslip_iterations = 0
