@@ -16,6 +16,7 @@ count), so masses and fill fractions are in the heightfield model's units, whate
 resolution: a bucket packed as densely as the pile reads its rated capacity, less the gaps
 a grain wide along its plates (``packed_bucket_fill``: 0.72 at 3 grains across the mouth,
 0.86 at 4, 0.87 at 6, 0.93 at 8), the most a struck bucket can read at that resolution.
+The default pile has 637 moving grains of 1.6 kg; a rated load is ~280 of them.
 
 **Non-rotating grains.** Each particle moves on three slide joints (x, y, z), not a free
 joint. Free spheres roll, and a pile of rolling spheres slumps to ~20 deg whatever their
@@ -28,7 +29,7 @@ close-packed face stands at the angle of repose and a collapsing block of them r
 
 **Digging zone.** Only the part of the pile the bucket reaches is made of moving grains:
 up to ``PARTICLE_ZONE_DEPTH_M`` behind the toe, ``PARTICLE_ZONE_HALF_WIDTH_M`` either side
-of the bucket's path (the walls go snug against the lattice: 1.29 m and 0.72 m at the
+of the bucket's path (the walls go snug against the lattice: 1.28 m and 0.72 m at the
 default resolution, the bucket is 1.3 m wide), and down to ``ACTIVE_DEPTH_M`` below the
 pile surface. (Scripted scoops move grains up to ~1.1 m behind the toe and 0.32 m deep.)
 Deeper lattice sites are the *static core*: spheres of the same size fixed to a static
