@@ -1,5 +1,9 @@
 """The particle soil (``soil="particles"``): a settled pile, exact mass bookkeeping,
-determinism, and a scoop that puts particles in the bucket."""
+determinism, a scoop that puts particles in the bucket, and the resolution (grains across
+the bucket mouth, fill measured the same way at every resolution).
+
+The scoops run on a coarse pile (``COARSE``, 4 grains across the mouth) to keep the suite
+fast; the default resolution is built once and checked without scooping."""
 
 from __future__ import annotations
 
@@ -9,8 +13,10 @@ import numpy as np
 import pytest
 from pilerl_pile_loader.soil import SOIL_MODELS
 from pilerl_pile_loader.soil.particles import (
+    ACTIVE_DEPTH_M,
     FOOTPRINT_MARGIN_M,
     MAX_PARTICLES,
+    MOUTH_GRAINS,
     ParticleSoil,
 )
 
@@ -18,14 +24,16 @@ import pilerl  # noqa: F401
 
 DRIVE_IN = np.array([0.0, 0.0, 0.5], np.float32)  # half throttle, bucket flat
 CURL_AND_RAISE = np.array([0.8, 0.8, 0.0], np.float32)
-DRIVE_STEPS = 40  # 2 s at 20 Hz: 1 m to the toe, then into the pile until it stalls
+DRIVE_STEPS = 48  # 2.4 s at 20 Hz: 1 m to the toe, then into the pile until it stalls
 MAX_STEPS = 120
+COARSE = {"mouth_grains": 4.0}  # the scooping tests' resolution (fast)
 
 
 def make(**kwargs) -> gym.Env:
     kwargs = {
         "start_distance_range_m": (1.0, 1.0),
         "approach_angle_range_deg": (0.0, 0.0),
+        "soil_options": COARSE,
         **kwargs,
     }
     return gym.make("pilerl/PileLoading-v0", soil="particles", **kwargs)
@@ -49,6 +57,11 @@ def env() -> gym.Env:
 
 
 @pytest.fixture(scope="module")
+def default_env() -> gym.Env:
+    return gym.make("pilerl/PileLoading-v0", soil="particles", sensor_noise=0.0)
+
+
+@pytest.fixture(scope="module")
 def scoop_infos(env) -> list[dict]:
     return scoop(env, seed=0)
 
@@ -69,9 +82,14 @@ def test_particle_mass_is_the_bulk_mass_of_the_zone(env):
     soil = env.unwrapped.soil
     bulk_kg = soil.material.density_kg_m3 * soil.zone_volume_m3
     assert soil.n_particles * soil.particle_mass_kg == pytest.approx(bulk_kg)
-    # the zone is the pile between its toe and the back wall: face at the repose angle
-    face_area_m2 = 0.5 * (soil.x_back_m - soil.pile.toe_x_m) ** 2 * np.tan(soil.repose_angle_rad)
-    assert soil.zone_volume_m3 == pytest.approx(2 * soil.half_width_m * face_area_m2, rel=0.02)
+    # the zone is the pile between its toe and the back wall, down to ACTIVE_DEPTH_M below
+    # its surface (the face rises at the repose angle; deeper lies the static core)
+    slope = np.tan(soil.repose_angle_rad)
+    length = soil.x_back_m - soil.pile.toe_x_m
+    full_depth_x = ACTIVE_DEPTH_M / slope  # where the face is ACTIVE_DEPTH_M high
+    assert length > full_depth_x
+    section_m2 = 0.5 * full_depth_x * ACTIVE_DEPTH_M + (length - full_depth_x) * ACTIVE_DEPTH_M
+    assert soil.zone_volume_m3 == pytest.approx(2 * soil.half_width_m * section_m2, rel=0.02)
     masses = env.unwrapped.model.body_mass[soil._bodies]
     np.testing.assert_allclose(masses, soil.particle_mass_kg)
 
@@ -92,6 +110,11 @@ def test_pile_is_at_rest_in_its_shape_after_reset(env):
     pos = expected - [0.0, soil.zone_offset_y_m, 0.0]
     surface = soil.pile.surface_height(pos[:, 0], pos[:, 1], soil.repose_angle_rad)
     assert np.all(pos[:, 2] <= surface + soil.radius_m)
+    # the moving grains lie within ACTIVE_DEPTH_M of the surface, the static core deeper
+    assert np.all(surface - soil.lattice[:, 2] <= ACTIVE_DEPTH_M + 1e-9)
+    core = soil.core
+    core_surface = soil.pile.surface_height(core[:, 0], core[:, 1], soil.repose_angle_rad)
+    assert len(core) > 0 and np.all(core_surface - core[:, 2] > ACTIVE_DEPTH_M)
 
 
 def test_zone_follows_the_bucket_path(env):
@@ -122,6 +145,8 @@ def test_same_seed_gives_the_same_particles(env, scoop_infos):
     soil = env.unwrapped.soil
     first_positions = soil.particle_positions().copy()
     other = make(sensor_noise=0.0)
+    # a pile built and settled again is the same pile, to the bit
+    np.testing.assert_array_equal(other.unwrapped.soil._settled_qpos, soil._settled_qpos)
     infos = scoop(other, seed=0)
     assert [i["fill_fraction"] for i in infos] == [i["fill_fraction"] for i in scoop_infos]
     np.testing.assert_array_equal(other.unwrapped.soil.particle_positions(), first_positions)
@@ -166,14 +191,89 @@ def test_tallies_follow_the_definitions(env):
     assert total == pytest.approx(soil.initial_mass_kg, rel=1e-12)
 
 
-def test_finer_pile_is_an_option():
-    import gymnasium as gym
+def test_default_resolution_spans_the_bucket_mouth_with_six_grains(default_env):
+    soil = default_env.unwrapped.soil
+    mouth_m = np.linalg.norm(soil.bucket.lip_xz - soil.bucket.cutting_edge_xz)
+    assert soil.mouth_length_m == pytest.approx(mouth_m)
+    assert soil.mouth_diameters == pytest.approx(mouth_m / (2 * soil.radius_m))
+    assert soil.mouth_diameters == pytest.approx(MOUTH_GRAINS)  # not capped by max_particles
+    assert soil.mouth_diameters >= 6.0
+    assert soil.n_particles <= MAX_PARTICLES
 
-    coarse = gym.make("pilerl/PileLoading-v0", soil="particles").unwrapped.soil
-    fine = gym.make(
-        "pilerl/PileLoading-v0", soil="particles", soil_options={"max_particles": 350}
-    ).unwrapped.soil
-    assert coarse.n_particles <= 120 < 200 <= fine.n_particles <= 350
+
+def test_finer_pile_is_an_option(env, default_env):
+    coarse, fine = env.unwrapped.soil, default_env.unwrapped.soil
+    assert coarse.mouth_diameters == pytest.approx(COARSE["mouth_grains"])
+    assert fine.n_particles > 2 * coarse.n_particles
     assert fine.radius_m < coarse.radius_m
     total = fine.n_particles * fine.particle_mass_kg
     assert total == pytest.approx(coarse.n_particles * coarse.particle_mass_kg, rel=0.15)
+
+
+def test_max_particles_caps_the_moving_grains():
+    soil = gym.make(
+        "pilerl/PileLoading-v0", soil="particles", soil_options={"max_particles": 150}
+    ).unwrapped.soil
+    assert soil.n_particles <= 150
+    assert soil.mouth_diameters < MOUTH_GRAINS  # the radius grew to fit the cap
+
+
+def _fill_bucket_with_lattice(env: gym.Env) -> int:
+    """Teleport particles onto the bucket's inside packed like the pile
+    (``packed_bucket_sites``) and recount; return how many."""
+    u = env.unwrapped
+    soil, data, machine = u.soil, u.data, u.machine
+    local = soil.packed_bucket_sites()
+    assert len(local) <= soil.n_particles
+    rotation = data.xmat[machine.bucket_body].reshape(3, 3)
+    world = data.xpos[machine.bucket_body] + local @ rotation.T
+    n = len(world)
+    qpos = data.qpos[soil._qpos].reshape(-1, 3)
+    qpos[:n] = world - soil.lattice[:n]
+    data.qpos[soil._qpos] = qpos.ravel()
+    data.qvel[soil._dofs][: 3 * n] = 1e-12  # a sleeping body ignores new qpos
+    mujoco.mj_forward(u.model, data)
+    soil.update(0.0)
+    return n
+
+
+@pytest.mark.parametrize("which", ["coarse", "default"])
+def test_fill_of_a_packed_bucket_is_measured_consistently(which, env, default_env):
+    """Each grain carries the bulk mass of its share of the pile, so grains packed into the
+    bucket as densely as in the pile read the bucket's rated (struck) capacity, less the
+    gaps a grain wide along its plates: ``packed_bucket_fill``, measured by the tallies."""
+    env = env if which == "coarse" else default_env
+    env.reset(seed=0)
+    n = _fill_bucket_with_lattice(env)
+    soil = env.unwrapped.soil
+    assert soil.particle_counts == (soil.n_particles - n, n, 0)
+    assert soil.fill_fraction == pytest.approx(soil.packed_bucket_fill, rel=1e-9)
+    rated_kg = soil.material.density_kg_m3 * soil.bucket.rated_volume_m3
+    assert soil.fill_fraction == pytest.approx(n * soil.particle_mass_kg / rated_kg, rel=1e-9)
+    total = soil.pile_mass_kg + soil.bucket_load_kg + soil.spilled_kg
+    assert total == pytest.approx(soil.initial_mass_kg, rel=1e-12)
+    env.reset(seed=0)
+    assert soil.particle_counts == (soil.n_particles, 0, 0)
+
+
+def test_packed_bucket_fill_approaches_the_rated_capacity_with_resolution(env, default_env):
+    coarse, fine = env.unwrapped.soil, default_env.unwrapped.soil
+    assert coarse.packed_bucket_fill < fine.packed_bucket_fill <= 1.0
+    assert fine.packed_bucket_fill > 0.85
+
+
+@pytest.mark.parametrize(
+    ("option", "bad"),
+    [
+        ("mouth_grains", 0.5),
+        ("mouth_grains", 13.0),
+        ("mouth_grains", float("nan")),
+        ("mouth_grains", True),
+        ("mouth_grains", "6"),
+        ("solver_iterations", 0),
+        ("solver_iterations", 2.5),
+    ],
+)
+def test_impossible_resolution_fails_naming_the_option(option, bad):
+    with pytest.raises(ValueError, match=option):
+        gym.make("pilerl/PileLoading-v0", soil="particles", soil_options={option: bad})

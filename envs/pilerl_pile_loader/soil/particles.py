@@ -1,17 +1,22 @@
 """Cross-check soil: a pile of MuJoCo spheres that the bucket pushes and scoops by contact.
 
 No earthmoving equation and no soil actuators: cutting resistance, intake, heaping and
-spill all come out of MuJoCo's contact solver. It is slower and much coarser than
-``heightfield.py``; it is meant to cross-check the fast model's fills and forces, not to
-train on. Cohesion (``Material.cohesion_pa``) is not represented: the clods are loose.
+spill all come out of MuJoCo's contact solver. It is slower than ``heightfield.py``; it is
+meant to cross-check the fast model's fills and forces, not to train on. Cohesion
+(``Material.cohesion_pa``) is not represented: the grains are loose.
 
-**Coarse graining.** Gravel grains (2 cm) are replaced by spheres whose radius grows
-from ``MIN_PARTICLE_RADIUS_M`` until the digging zone holds at most ``max_particles``
-bodies (default ``MAX_PARTICLES``: 11 cm clods, ~170x a grain's volume), so that the model
-runs faster than real time on one core. Each clod's mass is its share of the bulk mass of
-the pile region it fills (bulk density x zone volume / particle count), so masses and fill
-fractions are in the heightfield model's units. The default pile has 111 clods of 17 kg;
-the bucket's rated load is ~26 clods, so fill comes in steps of ~0.04.
+**Resolution.** Granular flow through an opening jams when the opening spans only a few
+grain diameters, so the grain size is set by the bucket mouth (cutting edge to top lip,
+0.64 m): ``mouth_grains`` diameters across it (default ``MOUTH_GRAINS`` = 6: 10.7 cm
+grains). Real 0-32 mm gravel gives ~25; at 3-4 the fill jams low (see
+docs/soil_models.md for how fill converges with resolution). ``max_particles`` caps the
+moving grains: while the zone would hold more, the radius grows. Each grain's mass is its
+share of the bulk mass of the pile region it fills (bulk density x zone volume / grain
+count), so masses and fill fractions are in the heightfield model's units, whatever the
+resolution: a bucket packed as densely as the pile reads its rated capacity, less the gaps
+a grain wide along its plates (``packed_bucket_fill``: 0.72 at 3 grains across the mouth,
+0.86 at 4, 0.87 at 6, 0.93 at 8), the most a struck bucket can read at that resolution.
+The default pile has 637 moving grains of 1.6 kg; a rated load is ~280 of them.
 
 **Non-rotating grains.** Each particle moves on three slide joints (x, y, z), not a free
 joint. Free spheres roll, and a pile of rolling spheres slumps to ~20 deg whatever their
@@ -22,15 +27,18 @@ spheres in a packing are stronger than their contact friction; with this ratio t
 close-packed face stands at the angle of repose and a collapsing block of them runs out to
 ~33 deg for dry gravel's 38 deg (slump test).
 
-**Digging zone.** Only the part of the pile the bucket can reach is made of particles:
-about ``PARTICLE_ZONE_DEPTH_M`` behind the toe and ``PARTICLE_ZONE_HALF_WIDTH_M`` either
-side of the bucket's path (the walls go snug against the lattice: 1.32 m and 0.78 m for
-the default pile, the bucket is 1.3 m wide). The pile is uniform along its toe line, so
-``reset`` slides the zone sideways to where the start pose aims the bucket
-(``AIM_DEPTH_M`` into the pile). Beyond the zone the pile is rigid: invisible static boxes
-shaped like the pile (face slab + crest box on both sides, a wall behind) hold the
-particles as the rest of the pile would. They touch only particles (collision bit
-``WALL_CONTYPE``), never the machine.
+**Digging zone.** Only the part of the pile the bucket reaches is made of moving grains:
+up to ``PARTICLE_ZONE_DEPTH_M`` behind the toe, ``PARTICLE_ZONE_HALF_WIDTH_M`` either side
+of the bucket's path (the walls go snug against the lattice: 1.28 m and 0.72 m at the
+default resolution, the bucket is 1.3 m wide), and down to ``ACTIVE_DEPTH_M`` below the
+pile surface. (Scripted scoops move grains up to ~1.1 m behind the toe and 0.32 m deep.)
+Deeper lattice sites are the *static core*: spheres of the same size fixed to a static
+body, so grains rest on a rough bed as in the pile, and the bucket meets the core as a
+solid were it to dig that deep. The pile is uniform along its toe line, so ``reset``
+slides the zone sideways to where the start pose aims the bucket (``AIM_DEPTH_M`` into the
+pile). Beyond the zone the pile is rigid: invisible static boxes shaped like the pile
+(face slab + crest box on both sides, a wall behind) hold the grains as the rest of the
+pile would. They touch only grains (collision bit ``WALL_CONTYPE``), never the machine.
 
 **Pile at reset.** The particles are laid on a hexagonal close-packed lattice filling the
 pile shape and settled once in ``bind`` with the machine parked far away; the settled
@@ -39,14 +47,19 @@ falls asleep at once. The pile is the same every episode (no shape noise, ``rng`
 used), so a seed fixes the whole episode.
 
 **Solver** (global MuJoCo options, so the machine's own contacts use them too). The
-particles touching each other and the bucket form one contact island that Newton's
-factorisation makes far too slow, so this model uses CG with a pyramidal friction cone and
-``SOLVER_ITERATIONS`` iterations. Driving and lifting in free air, the machine then matches
-the default Newton solver to within a few percent (an elliptic cone would need >= 100 CG
-iterations for that). In the pile the iteration cap leaves contact forces unconverged:
-against a converged solve the drive pressure reads ~15 % and the telescope pressure up to
-~40 % low, while fills, stall depth and scoop times agree. MuJoCo's body sleeping freezes
-a resting pile, so driving up to it costs almost nothing.
+grains touching each other and the bucket form one contact island that Newton's
+factorisation makes far too slow (a scoop at the default resolution did not finish in
+5 min), so this model uses CG with a pyramidal friction cone and ``solver_iterations``
+iterations (default ``SOLVER_ITERATIONS``), the largest cost of a step. Driving and lifting
+in free air, the machine then matches the default Newton solver to a few per cent (drive
+pressure 0.14 MPa off on average, of about 4 MPa; 14 iterations: 0.22 MPa, 10: 0.76 MPa).
+In the pile the cap leaves contact forces unconverged (against a converged solve the
+drive pressure reads ~15 % and the telescope pressure up to ~40 % low), and the fill
+depends on it too (docs/soil_models.md): at 6 grains across the mouth 20 and 40
+iterations give the same mean fill and 14 a quarter less; at 8, 20 are not enough
+(``conf/soil/particles_fine.yaml`` sets 40). Fewer iterations run faster but are not a
+cheaper version of the same pile. MuJoCo's body sleeping freezes a resting pile, so
+driving up to it costs almost nothing.
 
 **Tallies** (every ``update``; particle counts times the particle mass):
 
@@ -74,18 +87,20 @@ from .base import SoilModel
 if TYPE_CHECKING:
     from ..machine import Machine
 
-# ---- particles (coarse-grained clods, see module docstring)
-MIN_PARTICLE_RADIUS_M = 0.04  # the lattice starts at this radius and grows [m]
-MAX_PARTICLES = 120  # default cap (~11 cm clods): keeps >= 2x real time on one core
+# ---- particles (see module docstring)
+MOUTH_GRAINS = 6.0  # default resolution: grain diameters across the bucket mouth
+MAX_PARTICLES = 3000  # default cap on the moving grains (the default pile has fewer)
 RADIUS_GROWTH = 1.05  # radius step while a lattice holds more than max_particles
 PARTICLE_FRICTION_RATIO = 0.7  # particle friction / tan(friction angle) (slump-test fit)
-PARTICLE_ZONE_DEPTH_M = 1.4  # particles from the toe to this far behind it [m]
-PARTICLE_ZONE_HALF_WIDTH_M = 0.85  # particles within this of the bucket's path [m]
+PARTICLE_ZONE_DEPTH_M = 1.3  # particles from the toe to this far behind it [m]
+PARTICLE_ZONE_HALF_WIDTH_M = 0.75  # particles within this of the bucket's path [m]
+ACTIVE_DEPTH_M = 0.4  # grains deeper than this below the surface form the static core [m]
 AIM_DEPTH_M = 0.5  # the zone is centred where the bucket's path is this far into the pile [m]
 PARTICLE_RGBA = (0.55, 0.47, 0.36, 1.0)
 # ---- contacts (assets/wheel_loader.xml: ground contype 1 / conaffinity 1, machine 2 / 1)
 PARTICLE_CONTYPE = 1  # seen by the ground and the machine (their conaffinity 1)
-PARTICLE_CONAFFINITY = 1 | 2 | 4  # sees other particles, the machine and the walls
+PARTICLE_CONAFFINITY = 1 | 2 | 4  # sees other particles, the machine, the core and the walls
+CORE_CONTYPE = 1  # the static core: seen by particles and the machine (not the ground: static)
 WALL_CONTYPE = 4  # the rigid rest of the pile: seen by particles only
 WALL_THICKNESS_M = 0.6  # thickness of the boxes around the zone [m]
 WALL_GROUP = 3  # geom group that MuJoCo does not draw by default
@@ -100,6 +115,7 @@ CONE = mujoco.mjtCone.mjCONE_PYRAMIDAL
 SOLVER_ITERATIONS = 20
 SOLVER_LS_ITERATIONS = 10
 SOLVER_TOLERANCE = 1e-6
+ARENA_BYTES_PER_GRAIN = 24_000  # MuJoCo's arena (contacts, constraint rows) per sphere [B]
 SLEEP_TOLERANCE_M_S = 5e-3  # a resting particle island below this speed sleeps [m/s]
 # ---- settling in bind
 PARK_DISTANCE_M = 40.0  # the machine waits this far behind the toe while the pile settles [m]
@@ -122,32 +138,74 @@ class ParticleSoil(SoilModel):
 
     name = "particles"
 
-    def __init__(self, material, pile, bucket, *, max_particles: int = MAX_PARTICLES) -> None:
-        """Option (``soil_options`` of the env): ``max_particles``, the resolution.
+    def __init__(
+        self,
+        material,
+        pile,
+        bucket,
+        *,
+        max_particles: int = MAX_PARTICLES,
+        mouth_grains: float = MOUTH_GRAINS,
+        solver_iterations: int = SOLVER_ITERATIONS,
+    ) -> None:
+        """Options (``soil_options`` of the env), the resolution:
 
-        The sphere radius grows from ``MIN_PARTICLE_RADIUS_M`` until the pile holds at most
-        this many: the default (~111 spheres of 11 cm) keeps >= 2x real time on one core;
-        350 (~8 cm spheres) is a finer cross-check at about real time.
+        - ``mouth_grains``: grain diameters across the bucket mouth (cutting edge to lip);
+          sets the grain size. The default 6 gives grains of 10.7 cm diameter.
+        - ``max_particles``: a cap on the moving grains; while the zone would hold more,
+          the radius grows (so the mouth spans fewer grains than asked).
+        - ``solver_iterations``: MuJoCo's CG iterations per physics step (global: the
+          machine's contacts too); fewer run faster but leave contact forces, and with
+          them the fill, less converged (docs/soil_models.md).
         """
         super().__init__(material, pile, bucket)
         if not (isinstance(max_particles, int) and 20 <= max_particles <= 5000):
             raise ValueError(
                 f"ParticleSoil.max_particles: must be an int in [20, 5000], got {max_particles!r}"
             )
+        if isinstance(mouth_grains, bool) or not (
+            isinstance(mouth_grains, int | float) and 1.0 <= mouth_grains <= 12.0
+        ):
+            raise ValueError(
+                f"ParticleSoil.mouth_grains: must be a number in [1, 12], got {mouth_grains!r}"
+            )
+        if isinstance(solver_iterations, bool) or not (
+            isinstance(solver_iterations, int) and 1 <= solver_iterations <= 1000
+        ):
+            raise ValueError(
+                "ParticleSoil.solver_iterations: must be an int in [1, 1000], "
+                f"got {solver_iterations!r}"
+            )
         self.max_particles = max_particles
+        self.mouth_grains = float(mouth_grains)
+        self.solver_iterations = solver_iterations
+
+    @property
+    def mouth_length_m(self) -> float:
+        """Width [m] of the bucket mouth: the cutting edge to the top lip."""
+        return float(np.linalg.norm(self.bucket.lip_xz - self.bucket.cutting_edge_xz))
+
+    @property
+    def mouth_diameters(self) -> float:
+        """How many grain diameters the bucket mouth spans at the built resolution."""
+        return self.mouth_length_m / (2.0 * self.radius_m)
 
     # ------------------------------------------------------------------ build
     def add_to_spec(self, spec: mujoco.MjSpec) -> None:
         pile = self.pile
         self.x_back_m = pile.toe_x_m + min(PARTICLE_ZONE_DEPTH_M, pile.length_m)
         self.half_width_m = min(PARTICLE_ZONE_HALF_WIDTH_M, pile.half_width_m)
-        self.radius_m, self.lattice = self._fill_lattice()
+        self.radius_m, sites = self._fill_lattice()
         # the walls go snug against the lattice, so that no grain can slump into a gap
-        self.x_back_m = float(self.lattice[:, 0].max()) + self.radius_m
-        self.half_width_m = float(np.abs(self.lattice[:, 1]).max()) + self.radius_m
+        self.x_back_m = float(sites[:, 0].max()) + self.radius_m
+        self.half_width_m = float(np.abs(sites[:, 1]).max()) + self.radius_m
+        moving = self._depth_below_surface(sites) <= ACTIVE_DEPTH_M
+        self.lattice, self.core = sites[moving], sites[~moving]
         self.zone_volume_m3 = self._zone_volume_m3()
         self.n_particles = len(self.lattice)
         self.particle_mass_kg = self.material.density_kg_m3 * self.zone_volume_m3 / self.n_particles
+        rated_kg = self.material.density_kg_m3 * self.bucket.rated_volume_m3
+        self.packed_bucket_fill = len(self.packed_bucket_sites()) * self.particle_mass_kg / rated_kg
 
         friction = PARTICLE_FRICTION_RATIO * math.tan(self.repose_angle_rad)
         for i, position in enumerate(self.lattice):
@@ -166,7 +224,22 @@ class ParticleSoil(SoilModel):
                 solref=[CONTACT_TIMECONST_S, 1.0],
                 rgba=list(PARTICLE_RGBA),
             )
-        self._add_walls(spec, friction)
+        walls = self._add_walls(spec, friction)
+        for i, position in enumerate(self.core):
+            walls.add_geom(
+                name=f"core_{i}",
+                type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                pos=position.tolist(),
+                size=[self.radius_m, 0.0, 0.0],
+                contype=CORE_CONTYPE,
+                conaffinity=0,
+                condim=CONTACT_CONDIM,
+                priority=PARTICLE_PRIORITY,
+                friction=[friction, 0.0, 0.0],
+                solref=[CONTACT_TIMECONST_S, 1.0],
+                group=WALL_GROUP,
+                rgba=list(PARTICLE_RGBA),
+            )
 
         tool_friction = math.tan(math.radians(self.material.tool_friction_angle_deg))
         for name in BUCKET_GEOMS:
@@ -176,36 +249,46 @@ class ParticleSoil(SoilModel):
             geom.priority = BUCKET_PRIORITY
             geom.friction[0] = tool_friction
 
+        spec.memory = max(spec.memory, ARENA_BYTES_PER_GRAIN * len(sites))
         option = spec.option
         option.solver = SOLVER
         option.cone = CONE
-        option.iterations = SOLVER_ITERATIONS
+        option.iterations = self.solver_iterations
         option.ls_iterations = SOLVER_LS_ITERATIONS
         option.tolerance = SOLVER_TOLERANCE
         option.noslip_iterations = 0
         option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
         option.sleep_tolerance = SLEEP_TOLERANCE_M_S
 
+    def _depth_below_surface(self, points: np.ndarray) -> np.ndarray:
+        """Vertical depth [m] of points (N, 3) below the undisturbed pile surface."""
+        surface = self.pile.surface_height(points[:, 0], points[:, 1], self.repose_angle_rad)
+        return surface - points[:, 2]
+
     def _zone_volume_m3(self) -> float:
-        """Volume [m^3] of the undisturbed pile inside the digging zone."""
+        """Volume [m^3] of the undisturbed pile inside the digging zone, down to
+        ``ACTIVE_DEPTH_M`` below its surface (the moving grains; the core below is rigid)."""
         xs = np.arange(self.pile.toe_x_m, self.x_back_m, VOLUME_GRID_M) + VOLUME_GRID_M / 2
         ys = np.arange(-self.half_width_m, self.half_width_m, VOLUME_GRID_M) + VOLUME_GRID_M / 2
         grid_x, grid_y = np.meshgrid(xs, ys)
         heights = self.pile.surface_height(grid_x, grid_y, self.repose_angle_rad)
-        return float(heights.sum() * VOLUME_GRID_M**2)
+        return float(np.minimum(heights, ACTIVE_DEPTH_M).sum() * VOLUME_GRID_M**2)
 
     def _fill_lattice(self) -> tuple[float, np.ndarray]:
-        """Particle radius [m] and centres (N, 3) [m] filling the zone, N <= max_particles."""
-        radius = MIN_PARTICLE_RADIUS_M
-        centres = self._hcp_lattice(radius)
-        while len(centres) > self.max_particles:
+        """Grain radius [m] and lattice sites (N, 3) [m] filling the zone, with at most
+        ``max_particles`` sites in the moving layer."""
+        radius = self.mouth_length_m / (2.0 * self.mouth_grains)
+        sites = self._hcp_lattice(radius)
+        while np.count_nonzero(self._depth_below_surface(sites) <= ACTIVE_DEPTH_M) > (
+            self.max_particles
+        ):
             radius *= RADIUS_GROWTH
-            centres = self._hcp_lattice(radius)
-        if len(centres) == 0:
+            sites = self._hcp_lattice(radius)
+        if len(sites) == 0:
             raise ValueError(
                 f"ParticleSoil: the pile {self.pile} holds no particle of radius {radius:.3f} m"
             )
-        return radius, centres
+        return radius, sites
 
     def _hcp_lattice(self, r: float) -> np.ndarray:
         """Hexagonal close packing (ABAB layers, every grain in a pocket of three below) of
@@ -228,7 +311,30 @@ class ParticleSoil(SoilModel):
             centres[:, 1] -= (centres[:, 1].max() + centres[:, 1].min()) / 2
         return centres
 
-    def _add_walls(self, spec: mujoco.MjSpec, friction: float) -> None:
+    def packed_bucket_sites(self) -> np.ndarray:
+        """Grain centres (N, 3) [m], bucket frame, of the bucket's inside packed like the pile:
+        the same lattice, the first layer on the floor, whole grains between the side plates,
+        every site whose centre lies inside the interior polygon (in the pile: under the
+        surface). Its fill is the most a struck bucket reads at this resolution (walls leave
+        gaps a grain wide, which matter less the finer the grains)."""
+        r, polygon = self.radius_m, self.bucket.polygon
+        half_width = self.bucket.width_m / 2
+        layer_dz, row_dy = 2 * r * math.sqrt(2.0 / 3.0), math.sqrt(3.0) * r
+        (x0, z0), (x1, z1) = polygon.min(axis=0), polygon.max(axis=0)
+        layer, row, col = np.meshgrid(
+            np.arange(int((z1 - z0) / layer_dz) + 2),
+            np.arange(int(2 * half_width / row_dy) + 2),
+            np.arange(int((x1 - x0) / (2 * r)) + 2),
+            indexing="ij",
+        )
+        odd = layer % 2
+        x = x0 + r + 2 * r * col + r * (row % 2) + r * odd
+        y = -half_width + r + row * row_dy + odd * r / math.sqrt(3.0)
+        z = z0 + r + layer * layer_dz
+        keep = (np.abs(y) <= half_width - r) & _inside_polygon(x, z, polygon)
+        return np.stack([x[keep], y[keep], z[keep]], axis=1)
+
+    def _add_walls(self, spec: mujoco.MjSpec, friction: float) -> mujoco.MjsBody:
         """The rigid rest of the pile: a face slab and a crest box on each side of the zone and
         a wall behind it, up to the pile surface.
 
@@ -288,6 +394,7 @@ class ParticleSoil(SoilModel):
                 group=WALL_GROUP,
                 rgba=[*PARTICLE_RGBA[:3], 0.3],
             )
+        return walls
 
     # ------------------------------------------------------------------ bind
     def bind(self, model: mujoco.MjModel, data: mujoco.MjData, machine: Machine) -> None:
