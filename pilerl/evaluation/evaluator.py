@@ -25,7 +25,8 @@ from pilerl.operators import OperatorStyle, ScriptedScoopOperator
 from pilerl.runtime import process_pool
 from pilerl.sim import make_gym_env
 
-from .metrics import wilson_interval
+from .failures import FAILURE_MODES, PENETRATION_M, BoomLiftWatch, failure_mode
+from .metrics import fill_and_cycle_time, wilson_interval
 
 
 @dataclass(frozen=True)
@@ -138,9 +139,9 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
     operator.reset()
     seed = plan.seed * 100_000 + index
     obs, start = env.reset(seed=seed)
-    boom = _control_index(env, "boom")
+    lift = BoomLiftWatch(obs, getattr(env.unwrapped, "control_names", ()))
     total, max_slip, time_to_finish, max_depth = 0.0, 0.0, math.nan, 0.0
-    first_lift_s, penetration_s = math.nan, math.nan
+    penetration_s = math.nan
     while True:
         action = operator.act(obs)
         obs, reward, terminated, truncated, info = env.step(action)
@@ -148,14 +149,14 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
         max_slip = max(max_slip, float(info.get("wheel_slip_m_s", 0.0)))
         max_depth = max(max_depth, float(info.get("cutting_depth_m", 0.0)))
         now = float(info["elapsed_s"])
-        if boom is not None and math.isnan(first_lift_s) and action[boom] > LIFT_COMMAND:
-            first_lift_s = now
+        lift.observe(action, obs, now)
         if math.isnan(penetration_s) and max_depth >= PENETRATION_M:
             penetration_s = now
         if terminated or truncated:
             if info.get("scoop_finished"):
                 time_to_finish = now
             break
+    first_lift_s = lift.first_lift_s
     return {
         "controller": controller.name,
         "condition": condition,
@@ -183,41 +184,6 @@ def _run_episode(controller, plan: EvaluationPlan, condition: str, index: int) -
             penetration_s=penetration_s,
         ),
     }
-
-
-# What went wrong in a failed scoop, in the paper's words ("the main failure cases were
-# early boom rising and no boom rising at all"), decided from what was measured.
-LIFT_COMMAND = 0.3  # boom control above this is a lift
-PENETRATION_M = 0.10  # cutting-edge depth in the pile that counts as having dug in [m]
-FAILURE_MODES = ("early_boom_rise", "no_boom_rise", "tipped", "underfilled", "unfinished")
-
-
-def failure_mode(
-    *,
-    success: bool,
-    tipped: bool,
-    first_lift_s: float,
-    penetration_s: float,
-    finished: bool = True,
-) -> str:
-    """``success``, or why not: ``tipped``; ``no_boom_rise`` (the boom was never lifted);
-    ``early_boom_rise`` (lifted before the edge was ``PENETRATION_M`` deep in the pile);
-    ``underfilled`` (dug in, lifted and finished the scoop less than half full);
-    ``unfinished`` (dug in and lifted, but not curled and raised before the time limit)."""
-    if success:
-        return "success"
-    if tipped:
-        return "tipped"
-    if math.isnan(first_lift_s):
-        return "no_boom_rise"
-    if math.isnan(penetration_s) or first_lift_s < penetration_s:
-        return "early_boom_rise"
-    return "underfilled" if finished else "unfinished"
-
-
-def _control_index(env, name: str) -> int | None:
-    names = list(getattr(env.unwrapped, "control_names", ()))
-    return names.index(name) if name in names else None
 
 
 def evaluate(
@@ -286,6 +252,7 @@ def summarize_rows(rows: Sequence[dict], confidence: float = 0.95) -> dict:
         "failure_modes": {
             mode: sum(r.get("failure_mode") == mode for r in rows) for mode in FAILURE_MODES
         },
+        **fill_and_cycle_time(rows),
     }
 
 
