@@ -43,11 +43,13 @@ def test_it_drives_on_until_it_feels_the_impact_however_long_that_takes():
         assert operator.phase == "approach"
         assert command[0] == 0.0 and command[2] > 0  # boom at rest, driving
     impact = {**REST, "drive_pressure": 20.0}
-    phases = [operator.phase for _ in range(10) if operator.act(impact) is not None]
+    commands, phases = [], []
+    while operator.phase == "approach" and len(phases) < 10:
+        commands.append(operator.act(impact))
+        phases.append(operator.phase)
     assert phases[0] == "approach"  # a single high reading is not believed...
     assert phases[-1] == "fill"  # ...a lasting one is
-    command = operator.act(impact)
-    assert command[0] > 0 and command[2] > 0  # starts lifting while still pushing
+    assert commands[-1][0] > 0 and commands[-1][2] > 0  # starts lifting while still pushing
 
 
 def test_it_holds_the_bucket_level_and_the_boom_at_rest_while_approaching():
@@ -56,7 +58,7 @@ def test_it_holds_the_bucket_level_and_the_boom_at_rest_while_approaching():
     tilted = operator.act({**REST, "bucket_angle": REST["bucket_angle"] + 0.05})
     assert tilted[1] < 0  # floor tipped back: dump a little
     raised = operator.act({**REST, "boom_angle": REST["boom_angle"] + 0.05})
-    assert raised[0] < 0 and raised[1] > 0  # boom crept up: lower it, keep the floor level
+    assert raised[0] < 0 and raised[1] < 0  # boom crept up (floor tipped back): lower, dump
     assert operator.act(REST)[:2].tolist() == [0.0, 0.0]
 
 
@@ -123,11 +125,10 @@ def run_episode(operator, *, seed: int, hz: float = 1 / DT) -> dict:
 def test_demonstrations_are_explainable_from_the_controller_sensors():
     """Issue #15's target: boom and bucket commands explained with R² >= 0.8 from
     <θ1, θ2, p_d, p_t> and <= 1 s of their history, cross-validated by episode."""
-    hz = 10.0
     episodes = []
-    for i in range(12):
-        operator = make_expert(dt=1 / hz, rng=np.random.default_rng([0, i]))
-        run = run_episode(operator, seed=i, hz=hz)
-        episodes.append((run["readings"], run["labels"]))
-    r2 = explainable_variance(episodes, dt=1 / hz, history_s=(0.25, 0.5, 1.0))
+    for i in range(24):  # 24 summer episodes at 20 Hz, styles drawn as the recorder does
+        operator = make_expert(dt=DT, rng=np.random.default_rng([0, i]))
+        run = run_episode(operator, seed=i)
+        episodes.append((run["readings"], run["labels"][:, :2]))  # boom, bucket
+    r2 = explainable_variance(episodes, dt=DT, history_s=(0.25, 0.5, 1.0))
     assert r2[0] >= 0.8 and r2[1] >= 0.8, r2

@@ -73,12 +73,9 @@ class ActuationDelay:
 
 
 def _latency_range(latency_s: float | Sequence[float]) -> tuple[float, float]:
-    values = (
-        [latency_s, latency_s] if isinstance(latency_s, int | float) else list(latency_s)
-    )
+    values = [latency_s, latency_s] if isinstance(latency_s, int | float) else list(latency_s)
     if len(values) != 2 or not all(
-        isinstance(v, int | float) and math.isfinite(v) and 0 <= v <= MAX_LATENCY_S
-        for v in values
+        isinstance(v, int | float) and math.isfinite(v) and 0 <= v <= MAX_LATENCY_S for v in values
     ):
         raise ValueError(
             f"actuation_latency_s: must be a delay in [0, {MAX_LATENCY_S}] s or a range "
