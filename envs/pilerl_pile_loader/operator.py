@@ -272,6 +272,7 @@ class PileLoadingOperator:
         self._boom_trace: deque[float] = deque(maxlen=64)  # boom angles while lifting
         self._push_peak = 0.0
         self._eased = False
+        self._curled_back = False
         self._noise = np.zeros(3)
         self._noise_rng = np.random.default_rng(self.noise_seed)
 
@@ -392,7 +393,9 @@ class PileLoadingOperator:
         st = self.style
         if st.finish_overlap:
             return (st.raise_speed, 1.0, 0.0)
-        if reading["bucket_angle"] < st.finish_bucket_angle_rad:
+        if reading["bucket_angle"] >= st.finish_bucket_angle_rad:
+            self._curled_back = True  # once curled back, raise (a loaded bucket sags a bit)
+        if not self._curled_back:
             return (0.0, 1.0, 0.0)
         return (st.raise_speed, 0.0, 0.0)
 
