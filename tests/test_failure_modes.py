@@ -5,6 +5,7 @@ machine's response."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
@@ -12,6 +13,7 @@ import pytest
 from pilerl_pile_loader.latency import ActuationDelay
 
 import pilerl  # noqa: F401  (registers pilerl/PileLoading-v0)
+from pilerl.evaluation.evaluator import EvaluationPlan, evaluate, summarize
 from pilerl.evaluation.failures import LIFT_RISE_RAD, BoomLiftWatch, failure_mode
 from pilerl.evaluation.metrics import fill_and_cycle_time
 
@@ -104,3 +106,38 @@ def test_the_machine_answers_a_late_command_later():
     assert pump_after_one_step(actuation_latency_s=0.0) == prompt  # default: no delay
     assert 0 < pump_after_one_step(actuation_latency_s=0.2) < prompt
     assert 0 < pump_after_one_step(actuation_latency_s=(0.1, 0.3)) < prompt
+
+
+@dataclass(frozen=True)
+class CreepingBoom:
+    """A controller whose boom command creeps up from 0.06 but stays below the old 0.3
+    lift rule, while it drives at the pile (the runaway issue #15 found in NNetV2)."""
+
+    name: str = "creeping"
+
+    def build(self, dt: float):
+        return _Creeping(dt)
+
+
+class _Creeping:
+    def __init__(self, dt: float) -> None:
+        self.dt = dt
+
+    def reset(self) -> None:
+        self.time_s = 0.0
+
+    def act(self, observation) -> np.ndarray:
+        self.time_s += self.dt
+        boom = min(0.06 * math.exp(self.time_s / 0.25), 0.29)
+        return np.array([boom, 0.0, 0.5], dtype=np.float32)
+
+
+def test_evaluation_names_a_creeping_boom_an_early_boom_rise():
+    plan = EvaluationPlan("pile_loader", {}, ("summer",), episodes=1, seed=0)
+    (row,) = evaluate(CreepingBoom(), plan, workers=1, progress=False)
+    assert not row["success"]
+    assert row["first_lift_s"] < row["penetration_s"] or math.isnan(row["penetration_s"])
+    assert row["failure_mode"] == "early_boom_rise"  # the command rule said no_boom_rise
+    summary = summarize([row])["summer"]
+    assert summary["failure_modes"]["early_boom_rise"] == 1
+    assert sum(summary["fill_histogram"].values()) == 1

@@ -65,10 +65,14 @@ def test_it_holds_the_bucket_level_and_the_boom_at_rest_while_approaching():
 def test_a_stalled_boom_makes_it_curl():
     operator = make_expert(dt=DT)
     operator.act(REST)
-    impact = {**REST, "drive_pressure": 25.0, "boom_pressure": 20.0}
+    impact = {**REST, "drive_pressure": 25.0, "boom_pressure": 15.0}
     commands = [operator.act(impact) for _ in range(30)]  # pushing, lifting, boom not rising
     assert commands[5][0] > 0 and commands[5][1] == 0  # lifting first
-    assert commands[-1][1] > 0  # then, feeling the stall, curling
+    assert commands[-1][1] > 0  # then, feeling that the boom does not rise, curling
+    operator = make_expert(dt=DT)
+    operator.act(REST)
+    commands = [operator.act({**impact, "boom_pressure": 20.0}) for _ in range(5)]
+    assert commands[-1][1] > 0  # the boom's relief valve opens: curl at once
 
 
 def test_nominal_expert_is_deterministic_and_fills_a_summer_scoop():

@@ -76,6 +76,7 @@ class OperatorStyle:
             bucket is curled whenever its floor lags behind this.
         curl_band_rad: how far the bucket floor may lag behind the wanted pitch.
         curl_step_rad: how far one curl turns the bucket floor.
+        boom_stall_mpa: boom pressure felt as the boom stalling (the relief valve opens).
         bucket_stall_mpa: bucket pressure felt as the bucket stalling: stop curling.
         slip_drop_fraction: while pushing, a drive pressure below this fraction of the
             highest one felt in this push is felt as the wheels slipping: ease off.
@@ -102,6 +103,7 @@ class OperatorStyle:
     curl_per_lift: float = 1.8
     curl_band_rad: float = 0.08
     curl_step_rad: float = 0.2
+    boom_stall_mpa: float = 19.0
     bucket_stall_mpa: float = 19.0
     slip_drop_fraction: float = 0.5
     ease_throttle: float = 0.2
@@ -137,6 +139,7 @@ class OperatorStyle:
             "curl_per_lift",
             "curl_band_rad",
             "curl_step_rad",
+            "boom_stall_mpa",
             "bucket_stall_mpa",
             "fill_lift_rad",
             "hold_gain_per_rad",
@@ -361,7 +364,8 @@ class PileLoadingOperator:
             self._pushing = False  # the bucket is lifting out: stop crowding the pile
 
         if self._action == "lift":
-            if self._boom_stalled() or pitch < wanted - st.curl_band_rad:
+            stalled = self._boom_stalled() or reading["boom_pressure"] >= st.boom_stall_mpa
+            if stalled or pitch < wanted - st.curl_band_rad:
                 self._action, self._curl_from = "curl", pitch
         elif (
             pitch >= max(self._curl_from + st.curl_step_rad, wanted + st.curl_band_rad)
@@ -390,14 +394,14 @@ class PileLoadingOperator:
         return trace[-1] - trace[-window] < STALL_RISE_RAD
 
     def _finish(self, reading: dict[str, float]) -> tuple[float, float, float]:
+        """Curl back until the bucket reaches the end angle, then raise (some operators
+        raise while they curl)."""
         st = self.style
-        if st.finish_overlap:
-            return (st.raise_speed, 1.0, 0.0)
         if reading["bucket_angle"] >= st.finish_bucket_angle_rad:
-            self._curled_back = True  # once curled back, raise (a loaded bucket sags a bit)
-        if not self._curled_back:
-            return (0.0, 1.0, 0.0)
-        return (st.raise_speed, 0.0, 0.0)
+            self._curled_back = True  # once curled back, leave it (a loaded bucket sags)
+        curl = 0.0 if self._curled_back else 1.0
+        raise_boom = st.raise_speed if (self._curled_back or st.finish_overlap) else 0.0
+        return (raise_boom, curl, 0.0)
 
     def _executed(self, label: np.ndarray) -> np.ndarray:
         """The command the machine gets: the label, plus the DART perturbation if on."""
