@@ -8,9 +8,10 @@ is triggered by something it senses:
 1. ``approach``: drive at the pile with the boom at rest and the bucket held level (small
    corrections when the boom or the bucket floor drifts, as a person keeps the bucket flat).
 2. ``fill``: the *impact* is felt as the drive (or telescope) pressure rising well above the
-   level felt while driving. The operator starts lifting while still pushing; when the boom
-   stalls against the pile (boom pressure at the relief), or the bucket floor lags behind
-   the boom's rise, it curls the bucket; when the wheels slip (the drive pressure collapses
+   level felt while driving. The operator starts lifting while still pushing, and keeps
+   crowding the pile until the boom has risen a little; when the boom stalls against the
+   pile (its relief valve opens, or it does not rise), or the bucket floor lags behind the
+   boom's rise, it curls the bucket; when the wheels slip (the drive pressure collapses
    under a push) it eases off the throttle. Once the boom has risen far enough, the scoop
    is filled.
 3. ``finish``: curl the bucket back, then raise the boom (both at once for some operators),
@@ -21,8 +22,8 @@ and lift, how much they curl per lift), and ``sample_style`` draws one per episo
 paper's mistakes are behaviours, triggered by what the operator senses like everything
 else: a *jumpy* operator takes the surge of the drive pressure when the machine sets off
 for the impact and lifts early; a *hesitant* operator stops at the impact and waits for the
-drive pressure to relax before lifting; a *timid* operator curls early and lifts out of the
-pile soon, which leaves the bucket under-filled.
+felt pressure to relax before lifting, without pushing; a *timid* operator curls early
+and lifts out of the pile soon, which leaves the bucket under-filled.
 
 Recording option ``executed_noise`` (DART, Laskey et al. 2017): a slowly varying random
 perturbation is added to the *executed* boom and bucket commands while the operator's own
@@ -54,6 +55,10 @@ JUMPY_RISE_FRACTION = 0.35  # a jumpy operator reacts to this fraction of a sens
 
 NOISE_CORRELATION_S = 0.4  # correlation time of the DART perturbation [s]
 NOISED_CONTROLS = (0, 1)  # boom and bucket (the throttle stays clean)
+LEVEL_RISE_S = 1.5  # how fast the felt driving level follows a rising reading [s]
+DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)
+STALL_WINDOW_S = 0.3  # the boom is felt to stall when, lifting this long, ...
+STALL_RISE_RAD = 0.01  # ... it has risen less than this [rad]
 
 
 @dataclass(frozen=True)
@@ -413,12 +418,6 @@ class PileLoadingOperator:
         executed = label.astype(np.float64)
         executed[list(NOISED_CONTROLS)] += self.executed_noise * self._noise[list(NOISED_CONTROLS)]
         return np.clip(executed, -1.0, 1.0).astype(np.float32)
-
-
-LEVEL_RISE_S = 1.5  # how fast the felt driving level follows a rising reading [s]
-DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)
-STALL_WINDOW_S = 0.3  # the boom is felt to stall when, lifting this long, ...
-STALL_RISE_RAD = 0.01  # ... it has risen less than this [rad]
 
 
 __all__ = [
