@@ -49,13 +49,15 @@ TRIGGER_SENSORS: tuple[str, ...] = ("drive_pressure", "telescope_pressure")
 
 # How far above the felt driving level the trigger sensor must rise to be felt as impact,
 # drawn per operator [MPa]: the drive pressure climbs to its relief (~25 MPa) within a
-# few tenths of a second of contact in summer; the telescope pressure rises by a few MPa.
-IMPACT_RISE_RANGES_MPA = {"drive_pressure": (5.0, 9.0), "telescope_pressure": (0.8, 1.6)}
+# few tenths of a second of contact in summer; the telescope pressure by 3.4 MPa in summer
+# and 0.7 MPa on ice (docs/machine_model.md, typical readings; sensor noise 0.1 MPa).
+IMPACT_RISE_RANGES_MPA = {"drive_pressure": (5.0, 9.0), "telescope_pressure": (0.5, 1.0)}
 JUMPY_RISE_FRACTION = 0.35  # a jumpy operator reacts to this fraction of a sensible rise
 
 NOISE_CORRELATION_S = 0.4  # correlation time of the DART perturbation [s]
 NOISED_CONTROLS = (0, 1)  # boom and bucket (the throttle stays clean)
 LEVEL_RISE_S = 1.5  # how fast the felt driving level follows a rising reading [s]
+LEVEL_FALL_S = 0.2  # ... and a falling one (quickly, but not every noise dip) [s]
 DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)
 STALL_WINDOW_S = 0.3  # the boom is felt to stall when, lifting this long, ...
 STALL_RISE_RAD = 0.01  # ... it has risen less than this [rad]
@@ -318,16 +320,17 @@ class PileLoadingOperator:
     def _felt_impact(self, value: float) -> bool:
         """Impact: the trigger reading stays well above the level felt while driving.
 
-        The felt level follows the reading down at once and up slowly (time constant
-        ``LEVEL_RISE_S``), so the operator gets used to the pressure of driving at its own
+        The felt level follows the reading down quickly (``LEVEL_FALL_S``) and up slowly
+        (``LEVEL_RISE_S``), so the operator gets used to the pressure of driving at its own
         pace but not to the impact. A jumpy operator reacts at once to a small rise, such
         as the surge when the machine sets off.
         """
         st = self.style
-        if self._felt_level is None or value < self._felt_level:
+        if self._felt_level is None:
             self._felt_level = value
         else:
-            self._felt_level += (value - self._felt_level) * min(1.0, self.dt / LEVEL_RISE_S)
+            settle_s = LEVEL_FALL_S if value < self._felt_level else LEVEL_RISE_S
+            self._felt_level += (value - self._felt_level) * min(1.0, self.dt / settle_s)
         rise = st.impact_rise_mpa * (JUMPY_RISE_FRACTION if st.jumpy else 1.0)
         above = value - self._felt_level >= rise
         self._above_s = self._above_s + self.dt if above else 0.0
