@@ -375,12 +375,15 @@ class PileLoadingOperator:
             stalled = self._boom_stalled() or reading["boom_pressure"] >= st.boom_stall_mpa
             if stalled or pitch < wanted - st.curl_band_rad:
                 self._action, self._curl_from = "curl", pitch
-        elif (
-            pitch >= max(self._curl_from + st.curl_step_rad, wanted + st.curl_band_rad)
-            or reading["bucket_pressure"] >= st.bucket_stall_mpa
-        ):
-            self._action = "lift"
-            self._boom_trace.clear()
+        else:  # curling: on until the floor has turned and the boom is free again
+            turned = pitch >= max(self._curl_from + st.curl_step_rad, wanted + st.curl_band_rad)
+            boom_held = reading["boom_pressure"] >= st.boom_stall_mpa
+            bucket_stalled = reading["bucket_pressure"] >= st.bucket_stall_mpa
+            if (turned and not boom_held) or bucket_stalled:
+                self._action = "lift"
+                self._boom_trace.clear()
+                if boom_held:
+                    self._pushing = False  # boom and bucket both held: stop crowding
 
         throttle = 0.0
         if self._pushing:
