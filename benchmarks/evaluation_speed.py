@@ -40,9 +40,8 @@ from pilerl.evaluation.evaluator import (  # noqa: E402
     ScriptedController,
     evaluate,
 )
-from pilerl.operators import OperatorStyle, ScriptedScoopOperator  # noqa: E402
 from pilerl.policies import make_actor, save_actor  # noqa: E402
-from pilerl.sim import make_gym_env  # noqa: E402
+from pilerl.sim import get_simulator, make_gym_env  # noqa: E402
 
 CONDITIONS = ("summer", "winter_c")
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
@@ -56,7 +55,7 @@ def hand_loop(plan: EvaluationPlan) -> None:
     """The scripted operator in a plain Gymnasium loop, episode after episode."""
     for condition in plan.conditions:
         env = make_gym_env(plan.simulator, **plan.env_kwargs, condition=condition)
-        operator = ScriptedScoopOperator(OperatorStyle(), dt=float(env.unwrapped.dt))
+        operator = get_simulator(plan.simulator).make_expert(dt=float(env.unwrapped.dt))
         for index in range(plan.episodes):
             operator.reset()
             obs, _ = env.reset(seed=plan.seed * 100_000 + index)

@@ -43,13 +43,9 @@ ENV_ID = "pilerl/PileLoading-v0"
 
 
 def make_expert(dt: float):
-    """The pile loader's scripted expert, nominal style (the plugin's one where it exists)."""
-    try:
-        from pilerl_pile_loader.operator import make_expert as plugin_expert
-    except ImportError:
-        from pilerl.operators import OperatorStyle, ScriptedScoopOperator
+    """The pile loader's scripted expert, nominal style."""
+    from pilerl_pile_loader.operator import make_expert as plugin_expert
 
-        return ScriptedScoopOperator(OperatorStyle(), dt=dt)
     return plugin_expert(dt=dt)
 
 

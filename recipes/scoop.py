@@ -20,7 +20,7 @@ from pilerl.evaluation.episode import make_episode_env
 from pilerl.evaluation.scoop_report import summarize, write_scoop_report, write_trace_csv
 from pilerl.evaluation.settings import ScoopConfig
 from pilerl.evaluation.video import annotate_frames, sensor_ranges
-from pilerl.operators import OperatorModule, make_scripted_expert
+from pilerl.operators import OperatorModule
 from pilerl.recipe import Run, recipe
 from pilerl.rendering import resolve_videos
 from pilerl.sim.rollout import control_period_s
@@ -31,7 +31,6 @@ register_configs()
 
 @recipe("scoop")
 def main(config: ScoopConfig, run: Run) -> dict[str, float]:
-    style = config.operator
     out_dir = config.output_dir
     video = resolve_videos(config.video, where="video")
     episodes, summaries, videos = {}, {}, []
@@ -53,7 +52,7 @@ def main(config: ScoopConfig, run: Run) -> dict[str, float]:
 
     # --- one scripted scoop per condition
     for condition, env in envs.items():
-        operator = make_scripted_expert(dt=control_period_s(env), style=style)
+        operator = config.env.plugin().make_expert(dt=control_period_s(env), **config.expert)
         policy = OperatorModule.for_env([operator], env)
         episode = run_episode(
             env, policy, seed=config.seed, render=video, progress=f"scoop {condition}"

@@ -6,13 +6,14 @@ from dataclasses import dataclass, field
 
 import gymnasium as gym
 import numpy as np
+from pilerl_pile_loader.operator import make_expert
 
 import pilerl  # noqa: F401  (registers pilerl/PileLoading-v0)
-from pilerl.operators import OperatorStyle, ScriptedScoopOperator
 
-SENSIBLE = OperatorStyle()
-EARLY_BOOM = OperatorStyle(early_boom_rise_s=0.5)
-NO_BOOM = OperatorStyle(trigger_pressure_mpa=1000.0)  # the trigger never fires: pushes on
+# the pile loader expert's nominal style, set by its options (``OperatorStyle`` fields)
+SENSIBLE: dict = {}
+EARLY_BOOM = {"jumpy": True, "impact_hold_s": 0.0}  # lifts on a false impact cue
+NO_BOOM = {"impact_rise_mpa": 1000.0}  # never feels the impact: pushes on
 
 
 @dataclass
@@ -27,7 +28,7 @@ class Scoop:
 
 
 def run_scoop(
-    style: OperatorStyle,
+    style: dict,
     *,
     condition: str = "summer",
     seed: int = 0,
@@ -37,7 +38,7 @@ def run_scoop(
     env = gym.make("pilerl/PileLoading-v0", condition=condition, **env_kwargs)
     obs, info = env.reset(seed=seed)
     soil = env.unwrapped.soil
-    operator = ScriptedScoopOperator(style, dt=env.unwrapped.dt)
+    operator = make_expert(dt=env.unwrapped.dt, **style)
     scoop = Scoop(info=info, sensors={k: [] for k in obs})
     while True:
         obs, reward, terminated, truncated, info = env.step(operator.act(obs))

@@ -83,7 +83,7 @@ def test_failure_modes_in_the_papers_words(success, tipped, finished, lift_s, pe
 
 def test_a_scripted_early_lift_is_recorded_as_an_early_boom_rise():
     plan = EvaluationPlan("pile_loader", {}, ("summer",), episodes=1, seed=0)
-    early = ScriptedController({"early_boom_rise_s": 0.5}, name="early")
+    early = ScriptedController({"jumpy": True, "impact_hold_s": 0.0}, name="early")
     (row,) = evaluate(early, plan, workers=1, progress=False)
     assert row["failure_mode"] == "early_boom_rise" and row["first_lift_s"] < 2.0
     (row,) = evaluate(ScriptedController(), plan, workers=1, progress=False)

@@ -5,18 +5,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from pilerl_pile_loader.operator import PHASES as EXPERT_PHASES
 from tensordict import TensorDict
 
 from pilerl.data import EpisodeMeta, EpisodeStore, make_episode
 from pilerl.evaluation.attention_masks import phase_masks, plot_attention_masks
 from pilerl.evaluation.control_signals import (
+    OPERATOR_PHASES,
     SCOOP_PHASES,
     compare_controls,
     plot_control_signals,
     run_open_loop,
     scoop_phases,
 )
-from pilerl.operators import PHASES as OPERATOR_PHASES
 from pilerl.policies import INPUT_MASK_KEY, OUTPUT_MASK_KEY, make_actor
 from pilerl.training.bc import validation_loss
 
@@ -72,7 +73,7 @@ def nnetv2(seed: int):
 
 
 def test_scoop_phases_follow_the_operator_with_an_impact_window() -> None:
-    assert OPERATOR_PHASES == ("approach", "fill", "finish")  # the mapping below assumes it
+    assert OPERATOR_PHASES == EXPERT_PHASES == ("approach", "fill", "finish")  # as below
     episode = scoop_episode(operator_phases(3, 6, 2), seed=0)
     # 20 Hz: fill starts at 0.15 s; a 0.12 s window holds rows at +0, +0.05, +0.10 s
     phases = scoop_phases(episode, impact_window_s=0.12)

@@ -11,8 +11,6 @@ import pytest
 from scoops import EARLY_BOOM, NO_BOOM, SENSIBLE, drive_in, peak, run_scoop
 from sklearn.metrics import roc_auc_score
 
-from pilerl.operators import OperatorStyle
-
 SEEDS = (0, 1, 2)
 
 
@@ -73,7 +71,7 @@ def test_never_raising_the_boom_gives_a_low_fill(summer_push):
 def test_fill_grows_with_penetration_depth():
     depths, fills = [], []
     for throttle in (0.2, 0.45, 0.8):
-        style = OperatorStyle(approach_throttle=throttle, trigger_pressure_mpa=1000.0)
+        style = {"approach_throttle": throttle, "impact_rise_mpa": 1000.0}
         scoop = run_scoop(
             style, condition="summer", seed=0, max_seconds=6.0, start_distance_range_m=(1.0, 1.0)
         )

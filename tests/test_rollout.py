@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from pilerl_pile_loader.operator import PHASES
+from pilerl_pile_loader.operator import make_expert as make_scripted_expert
 from tensordict import TensorDict
 from tensordict.nn import TensorDictModuleBase
 
@@ -23,7 +25,7 @@ from pilerl.evaluation.evaluator import (
     EvaluationPlan,
     evaluate,
 )
-from pilerl.operators import PHASES, OperatorModule, make_scripted_expert
+from pilerl.operators import OperatorModule
 from pilerl.policies import make_actor, save_actor
 from pilerl.sim.rollout import (
     RowByRow,

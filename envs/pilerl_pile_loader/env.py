@@ -49,6 +49,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .conditions import Condition, get_condition
+from .latency import ActuationDelay
 from .machine import Machine, MachineParameters, load_machine_spec
 from .sensors import CONTROL_NAMES, SENSORS
 from .soil import BucketGeometry, PileGeometry, get_soil_model
@@ -80,6 +81,9 @@ class PileLoadingEnv(gym.Env):
         task: episode rules; reward_weights: reward part weights.
         render_mode: ``None`` or ``"rgb_array"``; render_size: (height, width) [px].
         camera: MJCF camera name for rendering (``side`` or ``overview``).
+        actuation_latency_s: dead time from a command to the valves and the pump [s], or
+            a range ``(low, high)`` drawn per episode; the real machine: 3 Hz control with
+            0.1-0.3 s latency (``latency.ActuationDelay``). 0 (default) = none.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
@@ -105,6 +109,7 @@ class PileLoadingEnv(gym.Env):
         render_mode: str | None = None,
         render_size: tuple[int, int] = (480, 640),
         camera: str = "side",
+        actuation_latency_s: float | Sequence[float] = 0.0,
     ) -> None:
         super().__init__()
         base = condition if isinstance(condition, Condition) else get_condition(condition)
@@ -165,6 +170,12 @@ class PileLoadingEnv(gym.Env):
         self._steps_since_soil = 0
         self.metadata = {**self.metadata, "render_fps": 1.0 / self.dt}
 
+        self._delay = ActuationDelay(
+            actuation_latency_s,
+            physics_dt=self.model.opt.timestep,
+            frame_skip=self.frame_skip,
+            n_controls=3,
+        )
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self.observation_space = spaces.Dict(
             {s.name: spaces.Box(s.low, s.high, shape=(1,), dtype=np.float32) for s in SENSORS}
@@ -191,6 +202,7 @@ class PileLoadingEnv(gym.Env):
         aim_y = rng.uniform(*LATERAL_OFFSET_RANGE_M)
         self._set_start_pose(distance, angle, aim_y)
         self.soil.reset(rng)
+        self._delay.reset(rng)
         self._valves[:] = 0.0
         self._pump_fraction = 0.0
         self._elapsed_s = 0.0
@@ -216,7 +228,8 @@ class PileLoadingEnv(gym.Env):
             )
         u = _validate_action(action)
         energy_before = self._energy_j
-        self._run_physics(self.frame_skip, command=u)
+        for n_steps, command in self._delay.segments(u):
+            self._run_physics(n_steps, command=command)
         self._elapsed_s += self.dt
 
         fill = self.soil.fill_fraction

@@ -1,55 +1,440 @@
-"""TEMPORARY: the pile loader's scripted expert behind the ``make_expert`` interface.
+"""The pile loader's scripted expert: an operator who reacts to what the machine feels like.
 
-This thin adapter wraps today's ``pilerl.operators.scripted`` so that every caller can
-reach the expert through the plugin declaration (``scripted_expert``). The operator
-helper's ``operator.py`` replaces this file at merge time (it must not import pilerl).
+People load a pile by feel, not by the clock (Yang et al., "Neural Network Controller for
+Autonomous Pile Loading Revised", Fig. 5: drive toward the pile, impact, filling, finished).
+This operator acts only on the machine's sensor readings, and every change of what it does
+is triggered by something it senses:
+
+1. ``approach``: drive at the pile with the boom at rest and the bucket held level (small
+   corrections when the boom or the bucket floor drifts, as a person keeps the bucket flat).
+2. ``fill``: the *impact* is felt as the drive (or telescope) pressure rising well above the
+   level felt while driving. The operator starts lifting while still pushing, and keeps
+   crowding the pile until the boom has risen a little; when the boom stalls against the
+   pile (its relief valve opens, or it does not rise), or the bucket floor lags behind the
+   boom's rise, it curls the bucket; when the wheels slip (the drive pressure collapses
+   under a push) it eases off the throttle. Once the boom has risen far enough, the scoop
+   is filled.
+3. ``finish``: curl the bucket back, then raise the boom (both at once for some operators),
+   until the scoop ends.
+
+Styles (``OperatorStyle``) make operators differ (pace, valve openings, how far they push
+and lift, how much they curl per lift), and ``sample_style`` draws one per episode. The
+paper's mistakes are behaviours, triggered by what the operator senses like everything
+else: a *jumpy* operator takes the surge of the drive pressure when the machine sets off
+for the impact and lifts early; a *hesitant* operator stops at the impact and waits for the
+felt pressure to relax before lifting, without pushing; a *timid* operator curls early
+and lifts out of the pile soon, which leaves the bucket under-filled.
+
+Recording option ``executed_noise`` (DART, Laskey et al. 2017): a slowly varying random
+perturbation is added to the *executed* boom and bucket commands while the operator's own
+clean command stays the label (``last_label``), so demonstrations show how the operator
+corrects drifts it never makes itself.
+
+Controls are ``[boom, bucket, throttle]`` in [-1, 1] (see ``env``); sensor readings in rad
+and MPa (``sensors.SENSORS``). This module depends on numpy only.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections import deque
 from collections.abc import Mapping
+from dataclasses import dataclass, fields
 
 import numpy as np
 
-from pilerl.operators.scripted import (
-    PHASES,
-    OperatorStyle,
-    ScriptedScoopOperator,
-    sample_style,
-)
+PHASES: tuple[str, ...] = ("approach", "fill", "finish")
+TRIGGER_SENSORS: tuple[str, ...] = ("drive_pressure", "telescope_pressure")
 
-DRAW_OPTIONS = {"mistake_rate": 0.28, "overlap_rate": 0.6}  # options of a drawn style
-STYLE_OPTIONS = [f.name for f in dataclasses.fields(OperatorStyle)]
+# How far above the felt driving level the trigger sensor must rise to be felt as impact,
+# drawn per operator [MPa]: the drive pressure climbs to its relief (~25 MPa) within a
+# few tenths of a second of contact in summer; the telescope pressure by 3.4 MPa in summer
+# and 0.7 MPa on ice (docs/machine_model.md, typical readings; sensor noise 0.1 MPa).
+IMPACT_RISE_RANGES_MPA = {"drive_pressure": (5.0, 9.0), "telescope_pressure": (0.5, 1.0)}
+JUMPY_RISE_FRACTION = 0.35  # a jumpy operator reacts to this fraction of a sensible rise
+
+NOISE_CORRELATION_S = 0.4  # correlation time of the DART perturbation [s]
+NOISED_CONTROLS = (0, 1)  # boom and bucket (the throttle stays clean)
+LEVEL_RISE_S = 1.5  # how fast the felt driving level follows a rising reading [s]
+LEVEL_FALL_S = 0.2  # ... and a falling one (quickly, but not every noise dip) [s]
+DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)
+STALL_WINDOW_S = 0.3  # the boom is felt to stall when, lifting this long, ...
+STALL_RISE_RAD = 0.01  # ... it has risen less than this [rad]
 
 
-class ScriptedExpert(ScriptedScoopOperator):
-    """``ScriptedScoopOperator`` with the ``Operator`` interface's ``PHASES`` and
-    ``last_label`` (here always the executed command)."""
+@dataclass(frozen=True)
+class OperatorStyle:
+    """How one operator drives. Angles in rad, pressures in MPa, valve openings in [0, 1].
+
+    Attributes:
+        trigger_sensor: what the impact is felt by: ``drive_pressure`` (the machine stalls,
+            the paper's summer cue) or ``telescope_pressure`` (the bucket is pushed back).
+        approach_throttle: throttle while driving to the pile.
+        impact_rise_mpa: rise of the trigger sensor above the level felt while driving
+            that is taken as the impact.
+        impact_hold_s: how long the rise must last before the operator believes it [s]
+            (a person does not react to a 50 ms blip; 0 for a jumpy operator).
+        push_throttle: throttle while pushing into the pile.
+        push_lift_rad: keep pushing until the boom has risen this far above rest.
+        lift: boom valve opening while lifting.
+        curl: bucket valve opening while curling.
+        curl_per_lift: bucket-floor pitch wanted per rad of boom rise during filling: the
+            bucket is curled whenever its floor lags behind this.
+        curl_band_rad: how far the bucket floor may lag behind the wanted pitch.
+        curl_step_rad: how far one curl turns the bucket floor.
+        boom_stall_mpa: boom pressure felt as the boom stalling (the relief valve opens).
+        bucket_stall_mpa: bucket pressure felt as the bucket stalling: stop curling.
+        slip_drop_fraction: while pushing, a drive pressure below this fraction of the
+            highest one felt in this push is felt as the wheels slipping: ease off.
+        ease_throttle: throttle after easing off.
+        fill_lift_rad: boom rise above rest at which filling is done.
+        finish_bucket_angle_rad: bucket joint angle reached before raising at the end.
+        raise_speed: boom valve opening while raising at the end.
+        finish_overlap: curl back and raise together at the end.
+        hesitant: at the impact, stop pushing and wait until the drive pressure has relaxed
+            to half the impact rise before lifting.
+        jumpy: take a small rise of the trigger sensor as the impact (the early-lift mistake).
+        hold_gain_per_rad: approach correction of the boom and bucket-floor drift [1/rad].
+        hold_deadband_rad: drift left alone during the approach [rad].
+    """
+
+    trigger_sensor: str = "drive_pressure"
+    approach_throttle: float = 0.4
+    impact_rise_mpa: float = 7.0
+    impact_hold_s: float = 0.15
+    push_throttle: float = 0.6
+    push_lift_rad: float = 0.08
+    lift: float = 0.7
+    curl: float = 0.7
+    curl_per_lift: float = 1.8
+    curl_band_rad: float = 0.08
+    curl_step_rad: float = 0.2
+    boom_stall_mpa: float = 19.0
+    bucket_stall_mpa: float = 19.0
+    slip_drop_fraction: float = 0.5
+    ease_throttle: float = 0.2
+    fill_lift_rad: float = 0.3
+    finish_bucket_angle_rad: float = 1.2
+    raise_speed: float = 0.8
+    finish_overlap: bool = False
+    hesitant: bool = False
+    jumpy: bool = False
+    hold_gain_per_rad: float = 5.0
+    hold_deadband_rad: float = 0.01
+
+    def __post_init__(self) -> None:
+        if self.trigger_sensor not in TRIGGER_SENSORS:
+            raise ValueError(
+                f"OperatorStyle.trigger_sensor: must be one of {TRIGGER_SENSORS}, "
+                f"got {self.trigger_sensor!r}"
+            )
+        for name in (
+            "approach_throttle",
+            "push_throttle",
+            "lift",
+            "curl",
+            "ease_throttle",
+            "raise_speed",
+            "slip_drop_fraction",
+        ):
+            _check(name, getattr(self, name), 0.0, 1.0)
+        for name in (
+            "impact_rise_mpa",
+            "impact_hold_s",
+            "push_lift_rad",
+            "curl_per_lift",
+            "curl_band_rad",
+            "curl_step_rad",
+            "boom_stall_mpa",
+            "bucket_stall_mpa",
+            "fill_lift_rad",
+            "hold_gain_per_rad",
+            "hold_deadband_rad",
+        ):
+            _check(name, getattr(self, name), 0.0, math.inf)
+        _check("finish_bucket_angle_rad", self.finish_bucket_angle_rad, -math.pi, math.pi)
+
+
+def _check(name: str, value: float, low: float, high: float) -> None:
+    if not (math.isfinite(value) and low <= value <= high):
+        raise ValueError(f"OperatorStyle.{name}: must lie in [{low}, {high}], got {value}")
+
+
+def sample_style(
+    rng: np.random.Generator,
+    *,
+    trigger_sensor: str = "drive_pressure",
+    mistake_rate: float = 0.28,
+) -> OperatorStyle:
+    """Draw one operator: varied in pace, valve openings and how they fill; with
+    probability ``mistake_rate`` one who makes one of the paper's mistakes (jumpy: lifts
+    early on a false impact cue; timid: curls early and lifts out, under-filling)."""
+    low, high = IMPACT_RISE_RANGES_MPA[trigger_sensor]
+    mistake = rng.random() < mistake_rate
+    kind = rng.choice(("jumpy", "timid")) if mistake else "none"
+    timid = kind == "timid"
+    return OperatorStyle(
+        trigger_sensor=trigger_sensor,
+        approach_throttle=float(rng.uniform(0.12, 0.3)),
+        impact_rise_mpa=float(rng.uniform(low, high)),
+        impact_hold_s=0.0 if kind == "jumpy" else float(rng.uniform(0.1, 0.25)),
+        push_throttle=float(rng.uniform(0.4, 0.8)),
+        push_lift_rad=float(rng.uniform(0.0, 0.03) if timid else rng.uniform(0.1, 0.2)),
+        lift=float(rng.uniform(0.2, 0.45)),
+        curl=float(rng.uniform(0.25, 0.55)),
+        curl_per_lift=float(rng.uniform(3.0, 4.0)) if timid else 1.8,
+        fill_lift_rad=0.15 if timid else 0.3,
+        raise_speed=float(rng.uniform(0.4, 0.9)),
+        finish_overlap=bool(rng.random() < 0.3),
+        hesitant=bool(rng.random() < 0.15),
+        jumpy=kind == "jumpy",
+    )
+
+
+OPTIONS = ("trigger_sensor", "mistake_rate", "executed_noise")
+
+
+def make_expert(
+    *, dt: float, rng: np.random.Generator | None = None, **options: object
+) -> PileLoadingOperator:
+    """The pile loader's scripted expert (the plugin's ``scripted_expert``).
+
+    Args:
+        dt: control period [s].
+        rng: ``None`` for the nominal operator (deterministic); else one operator style
+            drawn from ``rng`` (one call per recorded episode).
+        options: ``trigger_sensor`` (``drive_pressure`` | ``telescope_pressure``),
+            ``mistake_rate`` (share of operators drawn with a mistake, in [0, 1]),
+            ``executed_noise`` (std of the DART perturbation of the executed boom and
+            bucket commands, in [0, 1]; 0 = off); for the nominal operator also any
+            ``OperatorStyle`` field (e.g. ``jumpy``, ``push_throttle``) to set its style.
+    """
+    style_fields = {f.name for f in fields(OperatorStyle)} - {"trigger_sensor"}
+    known = OPTIONS if rng is not None else (*OPTIONS, *sorted(style_fields))
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise ValueError(
+            f"pile_loader scripted expert: unknown option(s) {unknown}; known: {list(known)}"
+        )
+    trigger_sensor = str(options.get("trigger_sensor", "drive_pressure"))
+    if trigger_sensor not in TRIGGER_SENSORS:
+        raise ValueError(
+            f"pile_loader scripted expert: trigger_sensor must be one of {TRIGGER_SENSORS}, "
+            f"got {trigger_sensor!r}"
+        )
+    mistake_rate = float(options.get("mistake_rate", 0.28))
+    executed_noise = float(options.get("executed_noise", 0.0))
+    for name, value in (("mistake_rate", mistake_rate), ("executed_noise", executed_noise)):
+        if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+            raise ValueError(f"pile_loader scripted expert: {name} must lie in [0, 1], got {value}")
+    if rng is None:
+        chosen = {k: v for k, v in options.items() if k in style_fields}
+        style, noise_seed = OperatorStyle(trigger_sensor=trigger_sensor, **chosen), 0
+    else:
+        style = sample_style(rng, trigger_sensor=trigger_sensor, mistake_rate=mistake_rate)
+        noise_seed = int(rng.integers(2**63 - 1))
+    return PileLoadingOperator(style, dt=dt, executed_noise=executed_noise, noise_seed=noise_seed)
+
+
+class PileLoadingOperator:
+    """Acts from a mapping of named sensor readings; call ``reset`` before each episode.
+
+    Args:
+        style: how this operator drives.
+        dt: control period [s].
+        executed_noise: std of the DART perturbation of the executed boom and bucket
+            commands (0 = off); ``last_label`` stays the clean command.
+        noise_seed: seed of the perturbation (the same sequence after every ``reset``).
+    """
 
     PHASES = PHASES
 
-    def act(self, sensors: Mapping[str, float]) -> np.ndarray:
-        self.last_label = super().act(sensors)
-        return self.last_label
+    def __init__(
+        self,
+        style: OperatorStyle | None = None,
+        *,
+        dt: float,
+        executed_noise: float = 0.0,
+        noise_seed: int = 0,
+    ) -> None:
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"PileLoadingOperator.dt: must be > 0 s, got {dt}")
+        self.style = style or OperatorStyle()
+        self.dt = dt
+        self.executed_noise = executed_noise
+        self.noise_seed = noise_seed
+        self.reset()
+
+    @property
+    def style_description(self) -> dict:
+        """The style as plain values (for episode metadata)."""
+        return dataclasses.asdict(self.style)
+
+    def reset(self) -> None:
+        self.phase = "approach"
+        self.last_label = np.zeros(3, dtype=np.float32)
+        self._rest_boom: float | None = None  # boom angle at rest, felt at the start [rad]
+        self._rest_pitch = 0.0  # boom + bucket angle with the floor level [rad]
+        self._felt_level: float | None = None  # trigger reading felt while driving [MPa]
+        self._above_s = 0.0  # how long the trigger has been above the impact level [s]
+        self._impact_reading = 0.0
+        self._waiting = False  # hesitant operator waiting after the impact
+        self._action = "lift"  # in filling: lift or curl
+        self._pushing = False  # in filling: still crowding the pile with the throttle
+        self._curl_from = 0.0  # bucket-floor pitch when the curl began [rad]
+        self._boom_trace: deque[float] = deque(maxlen=64)  # boom angles while lifting
+        self._push_peak = 0.0
+        self._eased = False
+        self._curled_back = False
+        self._noise = np.zeros(3)
+        self._noise_rng = np.random.default_rng(self.noise_seed)
+
+    # ------------------------------------------------------------------ acting
+    def act(self, sensors: Mapping[str, object]) -> np.ndarray:
+        """The executed command [boom, bucket, throttle] for these readings; the clean
+        command is kept in ``last_label``."""
+        reading = {k: float(np.asarray(v).reshape(-1)[0]) for k, v in sensors.items()}
+        if self._rest_boom is None:
+            self._rest_boom = reading["boom_angle"]
+            self._rest_pitch = reading["boom_angle"] + reading["bucket_angle"]
+        self._update_phase(reading)
+        if self.phase == "approach":
+            command = self._approach(reading)
+        elif self.phase == "fill":
+            command = self._fill(reading)
+        else:
+            command = self._finish(reading)
+        self.last_label = np.clip(np.asarray(command, dtype=np.float32), -1.0, 1.0)
+        return self._executed(self.last_label)
+
+    def _update_phase(self, reading: dict[str, float]) -> None:
+        st = self.style
+        if self.phase == "approach" and self._felt_impact(reading[st.trigger_sensor]):
+            self.phase = "fill"
+            self._waiting = st.hesitant
+            self._action, self._pushing = "lift", not st.hesitant
+            self._push_peak = reading["drive_pressure"]
+        if self.phase == "fill":
+            risen = reading["boom_angle"] - self._rest_boom
+            curled = reading["bucket_angle"] >= st.finish_bucket_angle_rad
+            if risen >= st.fill_lift_rad or curled:
+                self.phase = "finish"
+
+    def _felt_impact(self, value: float) -> bool:
+        """Impact: the trigger reading stays well above the level felt while driving.
+
+        The felt level follows the reading down quickly (``LEVEL_FALL_S``) and up slowly
+        (``LEVEL_RISE_S``), so the operator gets used to the pressure of driving at its own
+        pace but not to the impact. A jumpy operator reacts at once to a small rise, such
+        as the surge when the machine sets off.
+        """
+        st = self.style
+        if self._felt_level is None:
+            self._felt_level = value
+        else:
+            settle_s = LEVEL_FALL_S if value < self._felt_level else LEVEL_RISE_S
+            self._felt_level += (value - self._felt_level) * min(1.0, self.dt / settle_s)
+        rise = st.impact_rise_mpa * (JUMPY_RISE_FRACTION if st.jumpy else 1.0)
+        above = value - self._felt_level >= rise
+        self._above_s = self._above_s + self.dt if above else 0.0
+        if above and self._above_s >= st.impact_hold_s - 1e-9:
+            self._impact_reading = value
+            return True
+        return False
+
+    def _approach(self, reading: dict[str, float]) -> tuple[float, float, float]:
+        """Drive on; keep the boom at rest and the bucket floor level."""
+        st = self.style
+        boom_drift = reading["boom_angle"] - self._rest_boom
+        pitch_drift = reading["boom_angle"] + reading["bucket_angle"] - self._rest_pitch
+        return (self._hold(boom_drift), self._hold(pitch_drift), st.approach_throttle)
+
+    def _hold(self, drift_rad: float) -> float:
+        st = self.style
+        if abs(drift_rad) <= st.hold_deadband_rad:
+            return 0.0
+        return float(np.clip(-st.hold_gain_per_rad * drift_rad, -0.5, 0.5))
+
+    def _fill(self, reading: dict[str, float]) -> tuple[float, float, float]:
+        """Dig (lift while pushing), then lift and curl in turn: curl when the boom stalls
+        or the bucket floor lags behind the boom's rise; ease off the throttle when the
+        wheels slip."""
+        st = self.style
+        drive = reading["drive_pressure"]
+        if self._waiting:  # hesitant: stop, let the machine settle, then go on
+            trigger = reading[st.trigger_sensor]
+            if trigger > self._felt_level + 0.5 * (self._impact_reading - self._felt_level):
+                return (0.0, 0.0, 0.0)
+            self._waiting = False
+        boom, bucket = reading["boom_angle"], reading["bucket_angle"]
+        risen = boom - self._rest_boom
+        pitch = boom + bucket - self._rest_pitch
+        self._boom_trace.append(boom)
+        wanted = st.curl_per_lift * risen  # the bucket-floor pitch this boom rise calls for
+        if self._pushing and risen >= st.push_lift_rad:
+            self._pushing = False  # the bucket is lifting out: stop crowding the pile
+
+        if self._action == "lift":
+            stalled = self._boom_stalled() or reading["boom_pressure"] >= st.boom_stall_mpa
+            if stalled or pitch < wanted - st.curl_band_rad:
+                self._action, self._curl_from = "curl", pitch
+        else:  # curling: on until the floor has turned and the boom is free again
+            turned = pitch >= max(self._curl_from + st.curl_step_rad, wanted + st.curl_band_rad)
+            boom_held = reading["boom_pressure"] >= st.boom_stall_mpa
+            bucket_stalled = reading["bucket_pressure"] >= st.bucket_stall_mpa
+            if (turned and not boom_held) or bucket_stalled:
+                self._action = "lift"
+                self._boom_trace.clear()
+                if boom_held:
+                    self._pushing = False  # boom and bucket both held: stop crowding
+
+        throttle = 0.0
+        if self._pushing:
+            self._push_peak = max(self._push_peak, drive)
+            if drive < st.slip_drop_fraction * self._push_peak:
+                self._eased = True  # the push collapsed: the wheels slip
+            throttle = st.ease_throttle if self._eased else st.push_throttle
+        if self._action == "curl":
+            return (0.0, st.curl, throttle)
+        return ((DIG_LIFT_FRACTION if self._pushing else 1.0) * st.lift, 0.0, throttle)
+
+    def _boom_stalled(self) -> bool:
+        """The boom is felt to stall: lifting for ``STALL_WINDOW_S`` and it has not risen
+        by ``STALL_RISE_RAD``."""
+        window = max(2, round(STALL_WINDOW_S / self.dt) + 1)
+        trace = self._boom_trace
+        if len(trace) < window:
+            return False
+        return trace[-1] - trace[-window] < STALL_RISE_RAD
+
+    def _finish(self, reading: dict[str, float]) -> tuple[float, float, float]:
+        """Curl back until the bucket reaches the end angle, then raise (some operators
+        raise while they curl)."""
+        st = self.style
+        if reading["bucket_angle"] >= st.finish_bucket_angle_rad:
+            self._curled_back = True  # once curled back, leave it (a loaded bucket sags)
+        curl = 0.0 if self._curled_back else 1.0
+        raise_boom = st.raise_speed if (self._curled_back or st.finish_overlap) else 0.0
+        return (raise_boom, curl, 0.0)
+
+    def _executed(self, label: np.ndarray) -> np.ndarray:
+        """The command the machine gets: the label, plus the DART perturbation if on."""
+        if self.executed_noise <= 0:
+            return label.copy()
+        decay = math.exp(-self.dt / NOISE_CORRELATION_S)
+        shock = self._noise_rng.normal(0.0, 1.0, size=3)
+        self._noise = decay * self._noise + math.sqrt(1 - decay * decay) * shock
+        executed = label.astype(np.float64)
+        executed[list(NOISED_CONTROLS)] += self.executed_noise * self._noise[list(NOISED_CONTROLS)]
+        return np.clip(executed, -1.0, 1.0).astype(np.float32)
 
 
-def make_expert(*, dt: float, rng: np.random.Generator | None = None, **options) -> ScriptedExpert:
-    """The nominal operator (``rng=None``; options: ``OperatorStyle`` fields) or one style
-    drawn from ``rng`` (options: ``trigger_sensor``, ``mistake_rate``, ``overlap_rate``)."""
-    known = ["trigger_sensor", *DRAW_OPTIONS] if rng is not None else STYLE_OPTIONS
-    unknown = sorted(set(options) - set(known))
-    if unknown:
-        raise ValueError(f"pile loader expert: unknown option(s) {unknown}; known: {known}")
-    if rng is None:
-        return ScriptedExpert(OperatorStyle(**options), dt=dt)
-    drawn = {**DRAW_OPTIONS, "trigger_sensor": "drive_pressure", **options}
-    rate = drawn["mistake_rate"]
-    if not (isinstance(rate, int | float) and 0.0 <= rate <= 1.0):
-        raise ValueError(f"mistake_rate: must lie in [0, 1], got {drawn['mistake_rate']!r}")
-    if drawn["trigger_sensor"] not in ("drive_pressure", "telescope_pressure"):
-        raise ValueError(
-            "trigger_sensor: must be drive_pressure or telescope_pressure, "
-            f"got {drawn['trigger_sensor']!r}"
-        )
-    return ScriptedExpert(sample_style(rng, **drawn), dt=dt)
+__all__ = [
+    "OPTIONS",
+    "PHASES",
+    "OperatorStyle",
+    "PileLoadingOperator",
+    "make_expert",
+    "sample_style",
+]

@@ -6,7 +6,8 @@
 | ``evaluator`` | ``evaluate``: N seeded episodes per condition as batched rollouts |
 |  | (``pilerl.sim.rollout``) in worker processes, ``summarize`` |
 | ``closed_loop`` | ``run_closed_loop``: evaluate, then results, plots and chosen videos |
-| ``metrics`` | ``wilson_interval`` |
+| ``metrics`` | ``wilson_interval``, fill and cycle-time statistics, ``explainable_variance`` |
+| ``failures`` | ``failure_mode``: why a scoop failed (boom lift read from the boom angle) |
 | ``control_signals`` | the paper's Fig. 3: controllers' controls vs a demonstration |
 | ``attention_masks`` | the paper's Fig. 5: attention masks per scoop phase |
 | ``plots``, ``video``, ``scoop_report`` | signal plots, mp4, the scoop recipe's report |

@@ -16,6 +16,7 @@ Files written to ``out_dir``:
 from __future__ import annotations
 
 import logging
+import math
 import statistics
 from collections.abc import Collection, Sequence
 from pathlib import Path
@@ -93,10 +94,12 @@ def run_closed_loop(
 
 
 def log_summary(name: str, summary: dict[str, dict]) -> None:
-    """One log line per condition: successes, rate with its 95% interval, mean fill."""
+    """One log line per condition: successes, rate with its 95% interval, fill (mean and
+    quartiles) and the median cycle time of the finished scoops."""
     for condition, row in summary.items():
         log.info(
-            "%s %s: %d/%d successful (%.0f%%, 95%% CI %.0f-%.0f%%), mean fill %.2f",
+            "%s %s: %d/%d successful (%.0f%%, 95%% CI %.0f-%.0f%%), mean fill %.2f "
+            "(quartiles %.2f-%.2f), median cycle %.1f s",
             name,
             condition,
             row["successes"],
@@ -105,6 +108,9 @@ def log_summary(name: str, summary: dict[str, dict]) -> None:
             100 * row["success_low"],
             100 * row["success_high"],
             row["fill_mean"],
+            row.get("fill_p25", math.nan),
+            row.get("fill_p75", math.nan),
+            row.get("cycle_time_s_median", math.nan),
         )
 
 

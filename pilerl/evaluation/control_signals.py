@@ -16,8 +16,8 @@ operator's phase, which ``pilerl.data.recorder`` stores per row under the key ``
 | ``filling`` | the rest of operator phase ``fill`` | t_3, bucket filling with the boom |
 | ``finished`` | operator phase ``finish`` | t_4, finished |
 
-The operator enters ``fill`` when its impact cue fires (the trigger pressure held for
-``OperatorStyle.trigger_hold_s``), so ``impact`` starts at the felt impact and covers the
+The operator enters ``fill`` when it feels the impact (the pile loader's expert: a rise of
+its trigger sensor held for its style's ``impact_hold_s``), so ``impact`` starts at the felt impact and covers the
 operator's reaction delay and first filling action. For an operator who raises the boom
 too early, ``fill`` starts without an impact; its ``impact`` rows are the premature start.
 The episode ends when the bucket is curled back and raised, which usually happens while
@@ -38,7 +38,10 @@ from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule
 
 from pilerl.figures import legend_outside, save_figure
-from pilerl.operators import PHASES as OPERATOR_PHASES
+
+# the phases recorded with scripted demonstrations (the ``phase`` column indexes them): the
+# operator's own phases, of which the pile loader's expert declares these three
+OPERATOR_PHASES = ("approach", "fill", "finish")
 
 CONTROLS = ("boom", "bucket", "throttle")
 SCOOP_PHASES = ("approach", "impact", "filling", "finished")

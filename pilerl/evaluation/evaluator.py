@@ -42,7 +42,8 @@ from pilerl.sim.rollout import (
 )
 from pilerl.sim.torchrl_env import SimulatorBatchEnv
 
-from .metrics import wilson_interval
+from .failures import BOOM_ANGLE_SENSOR, FAILURE_MODES, PENETRATION_M, failure_mode, first_lift_step
+from .metrics import fill_and_cycle_time, wilson_interval
 
 # ``info`` entries an episode record is made of (NaN where a simulator reports none), beside
 # the simulator's declared success and fill keys (``evaluation_info``)
@@ -273,10 +274,15 @@ def episode_record(
 
     elapsed = run.info(episode, "elapsed_s")[1:]
     depth = trace("cutting_depth_m")
-    actions = run.episode(episode).get("action").numpy()
-    lifted = np.flatnonzero(actions[:, boom] > LIFT_COMMAND) if boom is not None else []
+    rows = run.episode(episode)
+    actions = rows.get("action").numpy()
+    angles = None
+    if BOOM_ANGLE_SENSOR in rows.keys():  # boom angle at reset, then after each step
+        before, after = rows.get(BOOM_ANGLE_SENSOR), rows.get(("next", BOOM_ANGLE_SENSOR))
+        angles = np.concatenate([before[:1].reshape(-1), after.reshape(-1)]).astype(np.float64)
+    lifted = first_lift_step(angles, actions[:, boom] if boom is not None else None)
     dug_in = np.flatnonzero(depth >= PENETRATION_M)
-    first_lift_s = float(elapsed[lifted[0]]) if len(lifted) else math.nan
+    first_lift_s = float(elapsed[lifted]) if lifted is not None else math.nan
     penetration_s = float(elapsed[dug_in[0]]) if len(dug_in) else math.nan
     success = bool(final(success_key, 0.0))
     tipped = bool(final("tipped", 0.0))
@@ -309,36 +315,6 @@ def episode_record(
             penetration_s=penetration_s,
         ),
     }
-
-
-# What went wrong in a failed scoop, in the paper's words ("the main failure cases were
-# early boom rising and no boom rising at all"), decided from what was measured.
-LIFT_COMMAND = 0.3  # boom control above this is a lift
-PENETRATION_M = 0.10  # cutting-edge depth in the pile that counts as having dug in [m]
-FAILURE_MODES = ("early_boom_rise", "no_boom_rise", "tipped", "underfilled", "unfinished")
-
-
-def failure_mode(
-    *,
-    success: bool,
-    tipped: bool,
-    first_lift_s: float,
-    penetration_s: float,
-    finished: bool = True,
-) -> str:
-    """``success``, or why not: ``tipped``; ``no_boom_rise`` (the boom was never lifted);
-    ``early_boom_rise`` (lifted before the edge was ``PENETRATION_M`` deep in the pile);
-    ``underfilled`` (dug in, lifted and finished the scoop less than half full);
-    ``unfinished`` (dug in and lifted, but not curled and raised before the time limit)."""
-    if success:
-        return "success"
-    if tipped:
-        return "tipped"
-    if math.isnan(first_lift_s):
-        return "no_boom_rise"
-    if math.isnan(penetration_s) or first_lift_s < penetration_s:
-        return "early_boom_rise"
-    return "underfilled" if finished else "unfinished"
 
 
 def evaluate(
@@ -423,6 +399,7 @@ def summarize_rows(rows: Sequence[dict], confidence: float = 0.95) -> dict:
         "failure_modes": {
             mode: sum(r.get("failure_mode") == mode for r in rows) for mode in FAILURE_MODES
         },
+        **fill_and_cycle_time(rows),
     }
 
 

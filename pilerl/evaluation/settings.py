@@ -14,7 +14,6 @@ from typing import Any
 from omegaconf import MISSING
 
 from pilerl import checks
-from pilerl.operators import OperatorStyle
 from pilerl.sim.settings import EnvConfig
 
 
@@ -118,7 +117,8 @@ class ScoopConfig:
 
     Attributes:
         env: simulator arguments; ``env.condition`` is replaced by each of ``conditions``.
-        operator: scripted operator style (``pilerl.operators.OperatorStyle``).
+        expert: options of the simulator's nominal scripted expert (the pile loader's:
+            ``trigger_sensor`` and its ``OperatorStyle`` fields); ``{}``: its defaults.
         conditions: conditions to scoop in, one episode each.
         seed: episode seed (start distance and approach angle follow from it).
         video: write an mp4 per condition: ``auto`` (when this machine can render, else
@@ -128,7 +128,7 @@ class ScoopConfig:
     """
 
     env: EnvConfig = field(default_factory=EnvConfig)
-    operator: OperatorStyle = field(default_factory=OperatorStyle)
+    expert: dict[str, Any] = field(default_factory=dict)
     conditions: list[str] = field(default_factory=lambda: ["summer", "winter_c"])
     seed: int = 0
     video: str = "auto"
@@ -139,6 +139,8 @@ class ScoopConfig:
 
     def __post_init__(self) -> None:
         checks.names("conditions", self.conditions)
+        self.env.plugin().resolve_conditions(self.conditions, where="conditions")
+        self.env.plugin().check_expert_options(self.expert, where="expert", drawn=False)
         checks.non_negative_int("seed", self.seed)
         checks.render_size("", self.render_width, self.render_height)
         checks.name("camera", self.camera)

@@ -29,8 +29,6 @@ from tensordict.nn import TensorDictModuleBase
 from pilerl.sim.rollout import sensor_names
 from pilerl.sim.torchrl_env import SimulatorBatchEnv
 
-from .scripted import PHASES as SCRIPTED_PHASES
-
 ACTION_KEY = "action"
 LABEL_KEY = "action_label"
 PHASE_KEY = "phase"
@@ -48,9 +46,8 @@ class Operator(Protocol):
 
 
 def operator_phases(operator: Operator) -> tuple[str, ...]:
-    """The operator's phase names (its ``PHASES``; the scripted operator's module-level
-    ``PHASES`` for operators that do not declare them)."""
-    return tuple(getattr(operator, "PHASES", SCRIPTED_PHASES))
+    """The operator's phase names (its ``PHASES``; none for an operator without phases)."""
+    return tuple(getattr(operator, "PHASES", ()))
 
 
 class OperatorModule(TensorDictModuleBase):
