@@ -17,12 +17,12 @@ operator's phase, which ``pilerl.data.recorder`` stores per row under the key ``
 | ``finished`` | operator phase ``finish`` | t_4, finished |
 
 The operator enters ``fill`` when it feels the impact (the pile loader's expert: a rise of
-its trigger sensor held for its style's ``impact_hold_s``), so ``impact`` starts at the felt impact and covers the
-operator's reaction delay and first filling action. For an operator who raises the boom
-too early, ``fill`` starts without an impact; its ``impact`` rows are the premature start.
-The episode ends when the bucket is curled back and raised, which usually happens while
-the operator is still in ``fill``: ``finished`` is then short or empty.
-"""
+its trigger sensor held for its style's ``impact_hold_s``), so ``impact`` starts at the
+felt impact and covers the operator's reaction delay and first filling action. For an
+operator who raises the boom too early, ``fill`` starts without an impact; its ``impact``
+rows are the premature start. The episode ends when the bucket is curled back and raised,
+which usually happens while the operator is still in ``fill``: ``finished`` is then short
+or empty."""
 
 from __future__ import annotations
 

@@ -277,7 +277,7 @@ def episode_record(
     rows = run.episode(episode)
     actions = rows.get("action").numpy()
     angles = None
-    if BOOM_ANGLE_SENSOR in rows.keys():  # boom angle at reset, then after each step
+    if BOOM_ANGLE_SENSOR in rows:  # boom angle at reset, then after each step
         before, after = rows.get(BOOM_ANGLE_SENSOR), rows.get(("next", BOOM_ANGLE_SENSOR))
         angles = np.concatenate([before[:1].reshape(-1), after.reshape(-1)]).astype(np.float64)
     lifted = first_lift_step(angles, actions[:, boom] if boom is not None else None)
