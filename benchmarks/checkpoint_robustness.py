@@ -3,7 +3,7 @@
     python benchmarks/checkpoint_robustness.py --cases 40 --kills 8 --rounds 2
 
 For each base file (a NNet ``best.pt``, a random-forest ``best.pt``, a TD3+BC
-``last.ckpt``) and each attack of ``tests/checkpoint_cases.py`` (bit flips, truncation,
+``last.ckpt``) and each attack of ``tests/policies/checkpoint_cases.py`` (bit flips, truncation,
 appended bytes, pickled objects, huge declared sizes, NaN/inf), ``--cases`` seeded cases;
 a case is clean when the file is refused with ``CheckpointError`` naming it, or loads
 identical to the original. Then ``--rounds`` times: the finetune recipe (tiny budget) is

@@ -1,7 +1,7 @@
 """Checkpoints cannot run code, blow up memory, loop forever or load corrupted, and a
 fine-tuning run survives SIGKILL at any moment.
 
-The attacks and verdicts are in ``tests/checkpoint_cases.py``;
+The attacks and verdicts are in ``tests/policies/checkpoint_cases.py``;
 ``benchmarks/checkpoint_robustness.py`` runs more of them and prints the case table.
 """
 
@@ -45,7 +45,7 @@ from pilerl.rl import finetune
 from pilerl.rl.finetuning import RUN_CHECKPOINT
 from pilerl.rl.run_checkpoint import load_run
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 register_configs()
 
 

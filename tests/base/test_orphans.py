@@ -19,7 +19,7 @@ import pytest
 
 from pilerl.runtime import die_with_parent
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 GONE_WITHIN_S = 30.0  # upper bound of the wait; the kernel usually needs milliseconds
 
 pytestmark = pytest.mark.skipif(

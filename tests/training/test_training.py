@@ -13,7 +13,7 @@ from test_recipes import run_recipe
 from pilerl.policies import load_actor, make_actor
 from pilerl.training import BCSettings, train_bc, train_bc_ensemble, validation_loss
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 S = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
 
 

@@ -19,7 +19,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from pilerl.config import register_configs
 
-CONF = Path(__file__).resolve().parents[1] / "conf"
+CONF = Path(__file__).resolve().parents[2] / "conf"
 PRIMARY = sorted(p.stem for p in CONF.glob("*.yaml"))
 OUT_DIR = {"record": "out_dir", "build_dataset": "out_dir", "teleop": "out_dir"}
 # values a recipe's command line must give (never read here: no recipe runs)

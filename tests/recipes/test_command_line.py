@@ -14,7 +14,7 @@ from pilerl.deploy.hil import simulator_layout
 from pilerl.deploy.packets import RearmPacket, decode
 from pilerl.sweeps.summary import AVERAGED_KEYS, summarize_sweep
 
-CONF = Path(__file__).resolve().parents[1] / "conf"
+CONF = Path(__file__).resolve().parents[2] / "conf"
 
 register_configs()
 

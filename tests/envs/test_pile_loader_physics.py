@@ -1,6 +1,6 @@
 """The phenomena the paper rests on happen in the simulator.
 
-Scoops are run by the scripted operator (tests/scoops.py) at fixed seeds.
+Scoops are run by the scripted operator (tests/envs/scoops.py) at fixed seeds.
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ from omegaconf.errors import ConfigKeyError, ValidationError
 from pilerl.config import register_configs
 from pilerl.evaluation.settings import ScoopConfig
 
-CONF = Path(__file__).resolve().parents[1] / "conf"
+CONF = Path(__file__).resolve().parents[2] / "conf"
 PRIMARY = sorted(p.stem for p in CONF.glob("*.yaml"))
 
 register_configs()

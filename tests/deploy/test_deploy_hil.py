@@ -28,7 +28,7 @@ from pilerl.policies import make_actor, save_actor
 from pilerl.policies.export import export_onnx
 from pilerl.training.bc import BCSettings, train_bc
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 S = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
 ENV = {"condition": "summer", "control_hz": 20.0, "start_distance_range_m": (1.0, 2.0)}
 SPEEDUP = 25.0

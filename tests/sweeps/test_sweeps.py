@@ -16,7 +16,7 @@ from pilerl.sweeps import is_done, mark_done, summarize_sweep
 from pilerl.sweeps.hydra_record import job_directories, read_choices, read_config, read_overrides
 from pilerl.sweeps.summary import main as summary_main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def fake_job(root: Path, number: int, overrides: list[str], metrics: dict | None) -> None:

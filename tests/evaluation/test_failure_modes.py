@@ -16,6 +16,8 @@ import pilerl  # noqa: F401  (registers pilerl/PileLoading-v0)
 from pilerl.evaluation.evaluator import EvaluationPlan, evaluate, summarize
 from pilerl.evaluation.failures import LIFT_RISE_RAD, BoomLiftWatch, failure_mode
 from pilerl.evaluation.metrics import fill_and_cycle_time
+from pilerl.operators import OperatorModule
+from pilerl.sim.rollout import control_period_s
 
 CONTROLS = ("boom", "bucket", "throttle")
 
@@ -115,8 +117,10 @@ class CreepingBoom:
 
     name: str = "creeping"
 
-    def build(self, dt: float):
-        return _Creeping(dt)
+    def policy(self, env):
+        """One creeping controller per simulator of the rollout env, as a TensorDict module."""
+        dt = control_period_s(env)
+        return OperatorModule.for_env([_Creeping(dt) for _ in env.simulators], env)
 
 
 class _Creeping:

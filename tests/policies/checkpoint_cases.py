@@ -1,6 +1,6 @@
 """Crafted and damaged checkpoints, and the verdict on how a loader answered each one.
 
-Shared by ``tests/test_checkpoint_safety.py`` (property-based tests) and
+Shared by ``tests/policies/test_checkpoint_safety.py`` (property-based tests) and
 ``benchmarks/checkpoint_robustness.py`` (the case-count table). A case starts from a valid
 file and applies one attack:
 

@@ -4,7 +4,7 @@ itself back through others.
 Imports are read with ``ast`` from every module under pilerl/, those inside functions
 included (a lazy import is still an arrow). Each module sits on the floor of the longest
 prefix listed in ``FLOORS``; a module may import from its own floor or any floor below.
-docs/architecture.md explains the floors; ``python tests/test_layers.py`` prints the listing
+docs/architecture.md explains the floors; ``python tests/config/test_layers.py`` prints the listing
 (which room imports which).
 """
 
@@ -15,7 +15,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "pilerl"
 
 # lowest first; a module's floor is that of the longest prefix naming it

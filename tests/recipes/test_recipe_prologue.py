@@ -11,7 +11,7 @@ import pytest
 
 from pilerl.layout import RunLayout
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MAX_RECIPE_LINES = 120
 
 RECIPE = """

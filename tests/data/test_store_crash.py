@@ -3,7 +3,7 @@ data are consistent (no duplicates, no lost committed episodes, no leftover temp
 files); concurrent writers; pickle-free, schema-checked loading.
 
 The kill tests run real subprocesses, a bounded number of kills each. Every kill is one
-case of a small harness (``KillTally``); ``python -m pytest tests/test_store_crash.py -s``
+case of a small harness (``KillTally``); ``python -m pytest tests/data/test_store_crash.py -s``
 prints the table test | cases | clean | defects.
 """
 
@@ -26,7 +26,7 @@ import torch
 
 from pilerl.data import EpisodeMeta, EpisodeStore, SchemaError, build_dataset, make_episode
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SENSORS = {"boom_angle": "rad", "drive_pressure": "MPa"}
 CONTROLS = ["boom", "bucket", "throttle"]
 WAIT_S = 120.0  # bound on any one subprocess
@@ -146,7 +146,7 @@ def append_loop(root: Path, first: int, count: int, *, skip_stored: bool = False
     )
     return python(
         APPEND_LOOP.format(
-            tests=str(REPO / "tests"),
+            tests=str(REPO / "tests" / "data"),
             root=str(root),
             sensors=SENSORS,
             controls=CONTROLS,

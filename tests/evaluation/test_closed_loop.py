@@ -9,21 +9,22 @@ from tensordict import TensorDict
 import pilerl  # noqa: F401
 from pilerl.data import EpisodeStore, RecordingPlan, build_dataset, record_demonstrations
 from pilerl.policies import make_actor
-from pilerl.sim import make_gym_env
+from pilerl.sim import get_simulator
 from pilerl.training import BCSettings, train_bc
 
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
 
 
 def test_cloned_dannet_succeeds_in_summer(tmp_path):
-    env = make_gym_env("pile_loader").unwrapped
+    plugin = get_simulator("pile_loader")
     store = EpisodeStore.create(
-        tmp_path / "raw", sensors=env.sensor_units, controls=list(env.control_names)
+        tmp_path / "raw", sensors=plugin.sensor_units, controls=list(plugin.controls)
     )
+    # the main job's 30 demonstrations: 12 left a clone that lifts before the pile
     plan = RecordingPlan(
-        "pile_loader", {"condition": "summer", "control_hz": 20.0}, n_episodes=12, seed=11
+        "pile_loader", {"condition": "summer", "control_hz": 20.0}, n_episodes=30, seed=11
     )
-    record_demonstrations(store, plan, workers=1, progress=False)
+    record_demonstrations(store, plan, workers=2, progress=False)
     d_ii = build_dataset(
         store, tmp_path / "d_ii", successful_only=True, rate_hz=None, progress=False
     )

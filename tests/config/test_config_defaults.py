@@ -19,7 +19,7 @@ from omegaconf import OmegaConf
 
 from pilerl.config import register_configs
 
-CONF = Path(__file__).resolve().parents[1] / "conf"
+CONF = Path(__file__).resolve().parents[2] / "conf"
 SKIPPED = ("hydra", "experiment")
 PACKAGES = {"env": ("env", "env_schema")}  # ``# @package env`` files -> their schema
 

@@ -31,7 +31,7 @@ from pilerl.policies import make_actor
 from pilerl.rl import ray_collection
 from pilerl.sim import make_torchrl_env
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 SENSORS = list(SENSOR_NAMES)  # the pile loader's seven sensors
 ACTOR_SENSORS = SENSORS[:4]

@@ -34,7 +34,7 @@ from pilerl.rl.finetuning import RUN_CHECKPOINT, _Run, load_cloned_actor
 from pilerl.rl.ppo import PPOLearner
 from pilerl.rl.td3bc import TD3BCLearner
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CONF = ROOT / "conf"
 S = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
 S_PRIME = [*S, "boom_pressure", "bucket_pressure", "pump_angle"]

@@ -12,7 +12,7 @@ import pytest
 
 from pilerl import rendering
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 PLAIN_SHELL = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY")}
 PLAIN_SHELL.pop("WAYLAND_DISPLAY", None)
 

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 # a fenced block: its info string (```bash, ```python file=make_log.py) and its text
 FENCE = re.compile(r"^[ \t]*```([^\n`]*)\n(.*?)^[ \t]*```", re.S | re.M)
@@ -58,7 +58,7 @@ TINY = {
 # options appended to a ``python -m`` module's command (argparse: the last one counts)
 TINY_MODULES = {"pilerl.deploy faults": ["--cases", "1"]}
 PLUGIN_TEST = (
-    "tests/test_third_party_plugin.py installs the documented plugin into a temporary "
+    "tests/sim/test_third_party_plugin.py installs the documented plugin into a temporary "
     "directory and runs these commands on it"
 )
 # command prefix -> why it is not run by this test
@@ -68,9 +68,11 @@ NOT_RUN = {
     "python recipes/record.py --multirun hydra/launcher=ray_cluster": "needs a Ray cluster",
     "python recipes/train_bc.py --multirun hydra/launcher=ray_cluster": "needs a Ray cluster",
     "python -m pilerl.deploy runtime": "serves until a machine connects (a second terminal); "
-    "tests/test_deploy_runtime.py runs it against a bridge",
+    "tests/deploy/test_deploy_runtime.py runs it against a bridge",
     "python -m pilerl.deploy bridge": "the second terminal of the runtime above",
-    "python -m pilerl.deploy rearm": "talks to a running runtime (tests/test_deploy_runtime.py)",
+    "python -m pilerl.deploy rearm": (
+        "talks to a running runtime (tests/deploy/test_deploy_runtime.py)"
+    ),
     "pip install -e ./my_heater": PLUGIN_TEST,
     'python -c "from pilerl.sim import available_simulators': PLUGIN_TEST,
     "python recipes/record.py env=my_heater": PLUGIN_TEST,
