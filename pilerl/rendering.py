@@ -134,17 +134,24 @@ def rendering_available() -> tuple[bool, str]:
     return True, f"MUJOCO_GL={backend or 'default'}"
 
 
-def resolve_videos(videos: bool | str, *, where: str = "videos") -> bool:
+def resolve_videos(videos: bool | str, *, where: str = "videos", renders: bool = True) -> bool:
     """Turn a ``videos`` setting (``true``, ``false`` or ``auto``) into a decision, now.
 
     ``auto`` renders when this machine can, else logs one warning and goes on without
     videos; ``true`` raises :class:`RenderingUnavailable` before any work if it cannot.
+    ``renders``: whether the simulator renders at all (its plugin's ``renders``); if not,
+    ``auto`` means no videos and ``true`` is refused.
     """
     choice = str(videos).strip().lower()  # Hydra hands a str field "True" for true
     if choice == "false":
         return False
     if choice not in ("true", "auto"):
         raise ValueError(f"{where}: must be true, false or auto, got {videos!r}")
+    if not renders:
+        if choice == "true":
+            raise ValueError(f"{where}=true, but this simulator does not render: set it false")
+        log.info("%s: the simulator does not render: no videos", where)
+        return False
     available, reason = rendering_available()
     if available:
         return True

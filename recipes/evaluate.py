@@ -29,7 +29,9 @@ register_configs()
 def main(config: EvaluateConfig, run: Run) -> dict[str, float]:
     """Returns the success rate over every evaluated episode (a sweep objective)."""
     checkpoint = resolve_checkpoint(config.checkpoint) if config.checkpoint else None
-    videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
+    videos = resolve_videos(
+        config.evaluation.videos, where="evaluation.videos", renders=config.env.plugin().renders
+    )
     # --- the controller: a checkpoint (loaded once here, so a bad file fails now) or scripted
     if checkpoint is None:
         controller = ScriptedController(

@@ -40,7 +40,9 @@ def main(config: FinetuneConfig, run: Run) -> dict[str, float]:
     """Returns the winter-or-first group's success rate after fine-tuning (best.pt)."""
     config.checkpoint = str(resolve_checkpoint(config.checkpoint))
     warn_if_other_control_rate(config.checkpoint, config.env.control_hz)
-    config.evaluation.video = resolve_videos(config.evaluation.video, where="evaluation.video")
+    config.evaluation.video = resolve_videos(
+        config.evaluation.video, where="evaluation.video", renders=config.env.plugin().renders
+    )
     config.check_inputs()  # the inputs exist: all before any work
     inputs = {
         "checkpoint": config.checkpoint,

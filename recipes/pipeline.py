@@ -43,7 +43,9 @@ register_configs()
 def main(config: PipelineConfig, run: Run) -> dict[str, float]:
     rl_config = dataclasses.replace(config.finetune, env=config.env)  # checked: fails now
     plan = closed_loop_plan(config.evaluation, config.env)  # so does a bad condition
-    videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
+    videos = resolve_videos(
+        config.evaluation.videos, where="evaluation.videos", renders=config.env.plugin().renders
+    )
     out, bc, rl = run.layout, RunLayout(Path(rl_config.checkpoint).parent), rl_config.output_dir
     name, demos, sensors = config.policy.name, config.demos, config.sensors
     run.begin(

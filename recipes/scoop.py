@@ -13,6 +13,7 @@ Writes to the Hydra run directory: ``scoop_<condition>.mp4``, ``trace_<condition
 from __future__ import annotations
 
 import logging
+import math
 
 from pilerl.config import register_configs
 from pilerl.evaluation import plot_scoop, run_episode, write_mp4
@@ -32,7 +33,7 @@ register_configs()
 @recipe("scoop")
 def main(config: ScoopConfig, run: Run) -> dict[str, float]:
     out_dir = config.output_dir
-    video = resolve_videos(config.video, where="video")
+    video = resolve_videos(config.video, where="video", renders=config.env.plugin().renders)
     episodes, summaries, videos = {}, {}, []
 
     # --- build every env first: a bad condition or parameter fails before any work
@@ -41,12 +42,20 @@ def main(config: ScoopConfig, run: Run) -> dict[str, float]:
             config.env.simulator,
             {
                 **config.env.make_kwargs(condition=condition),
-                "render_mode": "rgb_array" if video else None,
-                "render_size": (config.render_height, config.render_width),
-                "camera": config.camera,
+                **(
+                    {
+                        "render_mode": "rgb_array",
+                        "render_size": (config.render_height, config.render_width),
+                        "camera": config.camera,
+                    }
+                    if video
+                    else {}
+                ),
             },
         )
-        for condition in config.conditions
+        for condition in config.env.plugin().resolve_conditions(
+            config.conditions, where="conditions"
+        )
     }
     run.begin()
 
@@ -81,6 +90,7 @@ def main(config: ScoopConfig, run: Run) -> dict[str, float]:
         for condition, summary in summaries.items()
         for key, value in summary.items()
         if key in ("fill_fraction", "success", "duration_s", "return", "spilled_kg")
+        and math.isfinite(float(value))  # a simulator may not report a fill or a spill
     }
 
 

@@ -41,12 +41,9 @@ register_configs()
 def main(config: TrainBCConfig, run: Run) -> dict[str, float]:
     """Returns the best validation loss (else the final training loss): the objective of
     the Optuna sweeper (``hydra/sweeper=bc_optuna``)."""
-    videos = resolve_videos(config.evaluation.videos, where="evaluation.videos")
-    if config.ensemble_seeds > 1 and config.evaluation.episodes > 0:
-        raise ValueError(
-            "evaluation.episodes: an ensemble (ensemble_seeds > 1) has no one "
-            "controller to test in closed loop; set evaluation.episodes=0"
-        )
+    videos = resolve_videos(
+        config.evaluation.videos, where="evaluation.videos", renders=config.env.plugin().renders
+    )
 
     # --- data: the training set carries the normalisation statistics
     train_store = EpisodeStore.open(config.train_data)

@@ -211,7 +211,10 @@ def make_expert(
             ``OperatorStyle`` field (e.g. ``jumpy``, ``push_throttle``) to set its style.
     """
     style_fields = {f.name for f in fields(OperatorStyle)} - {"trigger_sensor"}
-    known = OPTIONS if rng is not None else (*OPTIONS, *sorted(style_fields))
+    # a drawn operator takes the mistake rate; the nominal one its style, field by field
+    known = (
+        OPTIONS if rng is not None else ("trigger_sensor", "executed_noise", *sorted(style_fields))
+    )
     unknown = sorted(set(options) - set(known))
     if unknown:
         raise ValueError(
@@ -223,18 +226,31 @@ def make_expert(
             f"pile_loader scripted expert: trigger_sensor must be one of {TRIGGER_SENSORS}, "
             f"got {trigger_sensor!r}"
         )
-    mistake_rate = float(options.get("mistake_rate", 0.28))
-    executed_noise = float(options.get("executed_noise", 0.0))
-    for name, value in (("mistake_rate", mistake_rate), ("executed_noise", executed_noise)):
-        if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-            raise ValueError(f"pile_loader scripted expert: {name} must lie in [0, 1], got {value}")
+    mistake_rate = _fraction("mistake_rate", options.get("mistake_rate", 0.28))
+    executed_noise = _fraction("executed_noise", options.get("executed_noise", 0.0))
     if rng is None:
         chosen = {k: v for k, v in options.items() if k in style_fields}
+        # the impact is felt on the trigger sensor's own scale unless the rise is given
+        low, high = IMPACT_RISE_RANGES_MPA[trigger_sensor]
+        chosen.setdefault("impact_rise_mpa", (low + high) / 2)
         style, noise_seed = OperatorStyle(trigger_sensor=trigger_sensor, **chosen), 0
     else:
         style = sample_style(rng, trigger_sensor=trigger_sensor, mistake_rate=mistake_rate)
         noise_seed = int(rng.integers(2**63 - 1))
     return PileLoadingOperator(style, dt=dt, executed_noise=executed_noise, noise_seed=noise_seed)
+
+
+def _fraction(name: str, value: object) -> float:
+    """``value`` as a number in [0, 1]; anything else fails naming the option."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"pile_loader scripted expert: {name} must be a number in [0, 1], got {value!r}"
+        ) from None
+    if not (math.isfinite(number) and 0.0 <= number <= 1.0):
+        raise ValueError(f"pile_loader scripted expert: {name} must lie in [0, 1], got {number}")
+    return number
 
 
 class PileLoadingOperator:

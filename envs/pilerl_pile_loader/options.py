@@ -31,6 +31,9 @@ class PileLoaderOptions:
         sensor_noise: multiplier of the sensors' default noise (0 = noiseless).
         start_distance_range_m: cutting edge to pile toe at reset [m], (low, high).
         approach_angle_range_deg: heading relative to the pile normal [deg], (low, high).
+        actuation_latency_s: dead time from a command to the valves and the pump [s],
+            (low, high): drawn per episode (low = high: a fixed delay; the real machine:
+            0.1-0.3 s).
     """
 
     condition: str = "summer"
@@ -42,6 +45,7 @@ class PileLoaderOptions:
     sensor_noise: float = 1.0
     start_distance_range_m: list[float] = field(default_factory=lambda: [1.0, 5.0])
     approach_angle_range_deg: list[float] = field(default_factory=lambda: [-10.0, 10.0])
+    actuation_latency_s: list[float] = field(default_factory=lambda: [0.0, 0.0])
 
     def __post_init__(self) -> None:
         for name in ("condition", "soil"):
@@ -60,6 +64,7 @@ class PileLoaderOptions:
         _interval(
             "approach_angle_range_deg", self.approach_angle_range_deg, -MAX_ANGLE_DEG, MAX_ANGLE_DEG
         )
+        _interval("actuation_latency_s", self.actuation_latency_s, 0.0, 1.0)
         for part, values in self.condition_overrides.items():
             if not isinstance(values, dict):
                 raise ValueError(f"condition_overrides.{part}: must map fields to numbers")

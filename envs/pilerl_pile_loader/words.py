@@ -36,4 +36,5 @@ PLUGIN = {
     "fill_key": "fill_fraction",
     "options": "pilerl_pile_loader.options:PileLoaderOptions",
     "scripted_expert": "pilerl_pile_loader.operator:make_expert",
+    "renders": True,
 }

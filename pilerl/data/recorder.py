@@ -193,6 +193,8 @@ def _episodes(
     plan: RecordingPlan, indices: list[int], workers: int
 ) -> Iterator[tuple[TensorDict, EpisodeMeta]]:
     chunks = _chunks(indices, workers)
+    if not chunks:  # everything is recorded already
+        return
     if workers <= 1 or len(chunks) == 1:
         for first, count in chunks:
             yield from _record_chunk(plan, first, count)

@@ -151,7 +151,8 @@ def render_rollout(
     episode = run_episode(env, controller.policy(env), seed=record["seed"], render=True)
     ranges = sensor_ranges(env.simulators[0])
     env.close()
-    if abs(float(episode.final_info["fill_fraction"]) - record["fill_fraction"]) > 1e-6:
+    fill_key = get_simulator(plan.simulator).fill_key or "fill_fraction"
+    if abs(float(episode.final_info.get(fill_key, math.nan)) - record["fill_fraction"]) > 1e-6:
         log.warning("%s: the re-rendered episode differs from the evaluated one", path)
     frames = annotate_frames(episode, condition=record["condition"], sensor_ranges=ranges)
     return write_mp4(frames, path, fps=episode.frame_hz)

@@ -2,7 +2,7 @@
 
 The paper: "the main failure cases were early boom rising and no boom rising at all". The
 boom counts as *lifted* when its angle has risen ``LIFT_RISE_RAD`` above its angle at the
-start of the episode (``BoomLiftWatch``): a controller whose boom command creeps up slowly
+start of the episode (``first_lift_step``): a controller whose boom command creeps up slowly
 lifts the boom all the same, and is named an early boom rise when that happens before the
 cutting edge is ``PENETRATION_M`` deep in the pile, not ``no_boom_rise``. A simulator
 without a boom-angle sensor falls back to the boom command (> ``LIFT_COMMAND``).
@@ -11,7 +11,6 @@ without a boom-angle sensor falls back to the boom command (> ``LIFT_COMMAND``).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -23,38 +22,9 @@ BOOM_CONTROL = "boom"
 FAILURE_MODES = ("early_boom_rise", "no_boom_rise", "tipped", "underfilled", "unfinished")
 
 
-class BoomLiftWatch:
-    """Watches an episode for the first boom lift.
-
-    Args:
-        start_observation: the observation at reset (its boom angle is the reference).
-        control_names: the simulator's control names (for the command fallback).
-    """
-
-    def __init__(
-        self, start_observation: Mapping[str, object], control_names: Sequence[str]
-    ) -> None:
-        self._start_angle = _reading(start_observation, BOOM_ANGLE_SENSOR)
-        names = list(control_names)
-        self._boom = names.index(BOOM_CONTROL) if BOOM_CONTROL in names else None
-        self.first_lift_s = math.nan
-
-    def observe(self, action: np.ndarray, observation: Mapping[str, object], now_s: float) -> None:
-        """After a step at time ``now_s`` [s]: ``action`` taken, ``observation`` reached."""
-        if not math.isnan(self.first_lift_s):
-            return
-        if self._start_angle is not None:
-            angle = _reading(observation, BOOM_ANGLE_SENSOR)
-            lifted = angle is not None and angle > self._start_angle + LIFT_RISE_RAD
-        else:
-            lifted = self._boom is not None and float(action[self._boom]) > LIFT_COMMAND
-        if lifted:
-            self.first_lift_s = now_s
-
-
 def first_lift_step(angles_rad: np.ndarray | None, boom_commands: np.ndarray | None) -> int | None:
     """The step of an episode after which the boom was first lifted, or None: the rule of
-    ``BoomLiftWatch`` over a whole recorded episode. ``angles_rad``: the boom angle at reset
+    lift rule over a whole recorded episode. ``angles_rad``: the boom angle at reset
     then after each step (T + 1 values; None without a boom-angle sensor); ``boom_commands``:
     the boom command of each step (T values; None without a boom control)."""
     if angles_rad is not None:
@@ -64,12 +34,6 @@ def first_lift_step(angles_rad: np.ndarray | None, boom_commands: np.ndarray | N
     else:
         return None
     return int(lifted[0]) if len(lifted) else None
-
-
-def _reading(observation: Mapping[str, object], name: str) -> float | None:
-    if name not in observation:
-        return None
-    return float(np.asarray(observation[name]).reshape(-1)[0])
 
 
 def failure_mode(
@@ -85,7 +49,7 @@ def failure_mode(
     ``underfilled`` (dug in, lifted and finished the scoop less than half full);
     ``unfinished`` (dug in and lifted, but not curled and raised before the time limit).
 
-    ``first_lift_s``: when the boom was first lifted (``BoomLiftWatch``), NaN if never;
+    ``first_lift_s``: when the boom was first lifted (``first_lift_step``), NaN if never;
     ``penetration_s``: when the edge first reached ``PENETRATION_M``, NaN if never [s]."""
     if success:
         return "success"
@@ -104,7 +68,6 @@ __all__ = [
     "LIFT_COMMAND",
     "LIFT_RISE_RAD",
     "PENETRATION_M",
-    "BoomLiftWatch",
     "failure_mode",
     "first_lift_step",
 ]

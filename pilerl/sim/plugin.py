@@ -72,6 +72,8 @@ class SimulatorPlugin:
         scripted_expert: ``module:function`` building the scripted expert,
             ``make_expert(*, dt, rng=None, **options)`` (see docs/simulator_plugins.md);
             ``None``: no expert (nothing to record demonstrations with).
+        renders: the env takes ``render_mode="rgb_array"``, ``render_size`` and ``camera``
+            (videos); ``False``: recipes make no videos of it.
         description: one line for listings.
     """
 
@@ -87,6 +89,7 @@ class SimulatorPlugin:
     success_key: str = "success"
     fill_key: str | None = None
     scripted_expert: str | None = None
+    renders: bool = False
     description: str = ""
 
     def __post_init__(self) -> None:

@@ -219,7 +219,7 @@ COMBINATIONS = [
     ("pipeline", ["sensors=no_such_set"], "sensors"),
     ("scoop", ["conditions=[]"], "conditions"),
     ("scoop", ["camera="], "camera"),
-    ("scoop", ["operator.trigger_sensor=boom_angle"], "trigger_sensor"),
+    ("scoop", ["+expert.trigger_sensor=boom_angle"], "trigger_sensor"),
     ("teleop", ["operator_id="], "operator_id"),
 ]
 

@@ -96,7 +96,7 @@ def test_impossible_operator_style_fails_when_the_config_is_built():
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = compose(
             config_name="scoop",
-            overrides=["output_dir=/tmp/unused", "operator.trigger_sensor=wheel_speed"],
+            overrides=["output_dir=/tmp/unused", "+expert.trigger_sensor=wheel_speed"],
         )
     with pytest.raises(ValueError, match="trigger_sensor"):
         OmegaConf.to_object(cfg)

@@ -14,49 +14,46 @@ from pilerl_pile_loader.latency import ActuationDelay
 
 import pilerl  # noqa: F401  (registers pilerl/PileLoading-v0)
 from pilerl.evaluation.evaluator import EvaluationPlan, evaluate, summarize
-from pilerl.evaluation.failures import LIFT_RISE_RAD, BoomLiftWatch, failure_mode
+from pilerl.evaluation.failures import (
+    LIFT_COMMAND,
+    LIFT_RISE_RAD,
+    failure_mode,
+    first_lift_step,
+)
 from pilerl.evaluation.metrics import fill_and_cycle_time
 from pilerl.operators import OperatorModule
 from pilerl.sim.rollout import control_period_s
-
-CONTROLS = ("boom", "bucket", "throttle")
 
 
 def test_a_slow_boom_drift_before_contact_is_an_early_boom_rise():
     """The controllers' failure of issue #15: a boom command creeping up from 0.06, never
     above the old 0.3 lift rule, lifts the boom before the pile."""
-    watch = BoomLiftWatch({"boom_angle": np.array([-0.45])}, CONTROLS)
-    angle, penetration_s = -0.45, 3.0
-    for step in range(40):
-        now = 0.1 * (step + 1)
-        command = np.array([min(0.06 * 1.1**step, 0.29), 0.0, 0.5])
-        angle += 0.05 * command[0]  # the boom follows the small command
-        watch.observe(command, {"boom_angle": np.array([angle])}, now)
-    assert watch.first_lift_s < penetration_s
+    commands = np.array([min(0.06 * 1.1**step, 0.29) for step in range(40)])
+    angles = -0.45 + np.concatenate([[0.0], np.cumsum(0.05 * commands)])  # boom follows
+    penetration_s = 3.0
+    lifted = first_lift_step(angles, commands)
+    assert lifted is not None and 0.1 * (lifted + 1) < penetration_s
+    assert not (commands > LIFT_COMMAND).any()  # the old command rule never saw a lift
     mode = failure_mode(
         success=False,
         tipped=False,
         finished=False,
-        first_lift_s=watch.first_lift_s,
+        first_lift_s=0.1 * (lifted + 1),
         penetration_s=penetration_s,
     )
     assert mode == "early_boom_rise"
 
 
 def test_a_boom_that_stays_down_is_no_boom_rise_even_with_a_large_command():
-    watch = BoomLiftWatch({"boom_angle": np.array([-0.45])}, CONTROLS)
-    for step in range(20):  # commanded, but held down (stalled in the pile)
-        angle = -0.45 + 0.5 * LIFT_RISE_RAD * step / 20
-        watch.observe(np.array([0.9, 0.0, 0.5]), {"boom_angle": np.array([angle])}, step * 0.1)
-    assert math.isnan(watch.first_lift_s)
+    commands = np.full(20, 0.9)  # commanded, but held down (stalled in the pile)
+    angles = -0.45 + 0.5 * LIFT_RISE_RAD * np.arange(21) / 20
+    assert first_lift_step(angles, commands) is None
 
 
 def test_without_a_boom_angle_the_boom_command_decides():
-    watch = BoomLiftWatch({"x": np.array([0.0])}, CONTROLS)
-    watch.observe(np.array([0.2, 0.0, 0.0]), {"x": np.array([0.0])}, 0.1)
-    assert math.isnan(watch.first_lift_s)
-    watch.observe(np.array([0.5, 0.0, 0.0]), {"x": np.array([0.0])}, 0.2)
-    assert watch.first_lift_s == 0.2
+    assert first_lift_step(None, np.array([0.2, 0.5, 0.9])) == 1
+    assert first_lift_step(None, np.array([0.2, 0.1])) is None
+    assert first_lift_step(None, None) is None
 
 
 def test_fill_distribution_and_cycle_time_beside_success():

@@ -151,3 +151,35 @@ def test_record_clone_evaluate_and_finetune_by_name(name, tmp_path):
     results = finetune(config, tmp_path / "finetune", progress=False)
     assert results["frames"] >= 64
     assert (tmp_path / "finetune" / "best.pt").is_file()
+
+
+def test_scoop_and_evaluate_run_on_a_simulator_that_does_not_render(tmp_path):
+    """The toy cart declares no rendering: ``videos=auto`` (the default) makes no videos
+    instead of passing it render keywords, and scoop expands condition groups."""
+    from test_recipes import run_recipe
+
+    assert not get_simulator("toy_cart").renders and get_simulator("pile_loader").renders
+    scoop = run_recipe(
+        "scoop.py", f"hydra.run.dir={tmp_path / 'scoop'}", "env=toy_cart", "conditions=[all]"
+    )
+    assert scoop.returncode == 0, scoop.stderr[-2000:]
+    for condition in get_simulator("toy_cart").conditions:
+        assert (tmp_path / "scoop" / f"trace_{condition}.csv").is_file()
+    assert not list((tmp_path / "scoop").glob("*.mp4"))
+    evaluated = run_recipe(
+        "evaluate.py",
+        f"hydra.run.dir={tmp_path / 'evaluate'}",
+        "env=toy_cart",
+        "evaluation.episodes=2",
+        "evaluation.videos=auto",
+    )
+    assert evaluated.returncode == 0, evaluated.stderr[-2000:]
+    assert (tmp_path / "evaluate" / "summary.json").is_file()
+    refused = run_recipe(
+        "evaluate.py",
+        f"hydra.run.dir={tmp_path / 'refused'}",
+        "env=toy_cart",
+        "evaluation.episodes=2",
+        "evaluation.videos=true",
+    )
+    assert refused.returncode != 0 and "does not render" in refused.stdout + refused.stderr

@@ -154,7 +154,7 @@ def test_multirun_with_the_local_parallel_launcher_then_summary(tmp_path):
         *SCOOP[1:],
         "hydra/launcher=local_parallel",
         "seed=0,1",
-        "operator.approach_throttle=0.4,0.6",
+        "+expert.approach_throttle=0.3,0.5",
         f"hydra.sweep.dir={tmp_path}",
     )
     assert result.returncode == 0, result.stderr[-3000:]
@@ -163,7 +163,7 @@ def test_multirun_with_the_local_parallel_launcher_then_summary(tmp_path):
     summary = run("-m", "pilerl.sweeps.summary", str(tmp_path), "--metric", "summer_fill_fraction")
     assert summary.returncode == 0, summary.stderr
     rows = (tmp_path / "sweep_summary.csv").read_text().splitlines()
-    assert rows[0].startswith("operator.approach_throttle,n_jobs,") and len(rows) == 3
+    assert rows[0].startswith("expert.approach_throttle,n_jobs,") and len(rows) == 3
 
 
 def test_multirun_with_submitit_local_executor(tmp_path):
