@@ -64,9 +64,11 @@ def write_pipeline_report(
     rows.append(["D_II (successful summer)", len(dataset), len(dataset), dataset.n_samples])
     report.table(["set", "episodes", "successful", "samples"], rows)
     report.paragraph(
-        f"Recorded at {config.demos.record_hz:g} Hz, seed {config.demos.seed}, early-boom-rise "
-        f"mistake rate {config.demos.mistake_rate:g}. Winter demonstrations use the "
-        "telescope-pressure cue (operators who feel the contact)."
+        f"Recorded at {config.demos.record_hz:g} Hz, seed {config.demos.seed}, by the "
+        "simulator's scripted expert (one operator style per episode); mistake rate "
+        f"{config.demos.mistake_rate:g} (operators who lift on a false impact cue or "
+        "under-fill). Winter demonstrations use the telescope-pressure cue (operators who "
+        "feel the contact)."
     )
 
     report.heading("Behaviour cloning")
