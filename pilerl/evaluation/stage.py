@@ -1,33 +1,24 @@
 """The evaluation stage: a controller tested in closed loop as its settings say.
 
 ``recipes/evaluate.py``, the closed-loop test of ``recipes/train_bc.py`` and the
-pipeline's two evaluations call these with their ``evaluation`` settings (the
-``ClosedLoopConfig`` of ``pilerl.config``) and their env settings.
+pipeline's two evaluations call these with their ``evaluation`` settings
+(``ClosedLoopConfig``) and their env settings.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
+
+from pilerl.sim.settings import EnvConfig
 
 from .closed_loop import run_closed_loop
 from .evaluator import EvaluationPlan, build_envs
+from .settings import ClosedLoopConfig
 
 
-class ClosedLoopSettings(Protocol):
-    """What this stage reads of the closed-loop settings (``ClosedLoopConfig``)."""
-
-    conditions: list[str]
-    workers: int | None
-    video_conditions: list[str] | None
-    render_width: int
-    render_height: int
-
-    def plan(self, env: Any) -> EvaluationPlan: ...
-
-
-def closed_loop_plan(settings: ClosedLoopSettings, env: Any) -> EvaluationPlan:
+def closed_loop_plan(settings: ClosedLoopConfig, env: EnvConfig) -> EvaluationPlan:
     """The evaluation plan of ``settings`` in ``env``, its envs built once in this process:
     a bad condition or env setting fails here, before any work (forked episode workers
     inherit the envs)."""
@@ -39,7 +30,7 @@ def closed_loop_plan(settings: ClosedLoopSettings, env: Any) -> EvaluationPlan:
 def evaluate_controller(
     controller: Any,
     plan: EvaluationPlan,
-    settings: ClosedLoopSettings,
+    settings: ClosedLoopConfig,
     out_dir: str | Path,
     *,
     videos: bool = False,
