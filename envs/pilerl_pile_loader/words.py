@@ -8,10 +8,22 @@ importing this one stays cheap (no MuJoCo) and needs nothing from pilerl.
 from __future__ import annotations
 
 from .conditions import CONDITIONS
+from .failures import EPISODE_INFO, FAILURE_MODES
 from .sensors import CONTROL_NAMES, SENSORS
 from .task import RewardWeights, reward_parts
 
 WINTER = ("winter_a", "winter_b", "winter_c", "winter_d")  # the paper's winter test days A-D
+# how to read a scoop report against the paper (recipes/scoop.py)
+REPORT_NOTES = (
+    "- The paper's winter failure: wheel slip on ice caps the drive pressure p_d, so an",
+    "  operator (or a controller) that waits for p_d to rise before lifting never lifts.",
+    "  Compare `peak_drive_pressure_mpa` between summer and the icy conditions (winter_b,",
+    "  winter_c): summer reaches the HST relief pressure (25 MPa), ice does not.",
+    "- The telescope pressure p_t still rises on ice as the bucket penetrates",
+    "  (`peak_telescope_pressure_mpa`), which is why the paper found p_t essential.",
+    "- The simulator's numbers are a model's (docs/machine_model.md lists every",
+    "  assumption); they are not measurements of the paper's machine.",
+)
 
 PLUGIN = {
     "name": "pile_loader",
@@ -37,4 +49,12 @@ PLUGIN = {
     "options": "pilerl_pile_loader.options:PileLoaderOptions",
     "scripted_expert": "pilerl_pile_loader.operator:make_expert",
     "renders": True,
+    "episode_info": dict(EPISODE_INFO),
+    "failure_modes": list(FAILURE_MODES),
+    "episode_columns": "pilerl_pile_loader.failures:episode_columns",
+    "summary_columns": "pilerl_pile_loader.failures:summary_columns",
+    # fine-tuning's default mixture: the four winter days and summer, equally likely
+    "curriculum": {"winter": 1.0, "summer": 1.0},
+    "example_conditions": ["summer", "winter_c"],
+    "report_notes": list(REPORT_NOTES),
 }

@@ -2,8 +2,10 @@
 
 A 1-D cart that must stop at a target; pure NumPy, no MuJoCo. It declares every word a
 simulator declares (sensors, controls, conditions and a group, reward parts, options,
-a scripted expert), so every recipe runs on it (``env=toy_cart``) in seconds: a fast
-stand-in in tests of code that takes any simulator.
+a scripted expert, the ``info`` it reports, its failure modes and the rule naming them),
+so every recipe runs on it (``env=toy_cart``) in seconds: a fast stand-in in tests of
+code that takes any simulator. The rest keep their defaults: fine-tuning's default
+curriculum is every condition, ``recipes/scoop.py`` shows the first one.
 """
 
 PLUGIN = {
@@ -24,6 +26,9 @@ PLUGIN = {
     "condition_groups": {"hard": ["heavy", "headwind"]},
     "reward_parts": ["reward_distance", "reward_success"],
     "success_key": "success",
+    "episode_info": {"error_m": "m"},
+    "failure_modes": ["overshot", "fell_short"],
+    "episode_columns": "pilerl_toy_cart.failures:episode_columns",
     "options": "pilerl_toy_cart.options:ToyCartOptions",
     "scripted_expert": "pilerl_toy_cart.expert:make_expert",
 }

@@ -7,7 +7,7 @@
 |  | (``pilerl.sim.rollout``) in worker processes, ``summarize`` |
 | ``closed_loop`` | ``run_closed_loop``: evaluate, then results, plots and chosen videos |
 | ``metrics`` | ``wilson_interval``, fill and cycle-time statistics, ``explainable_variance`` |
-| ``failures`` | ``failure_mode``: why a scoop failed (boom lift read from the boom angle) |
+| ``failures`` | an episode's outcome in the simulator's words (its declared failure modes) |
 | ``control_signals`` | the paper's Fig. 3: controllers' controls vs a demonstration |
 | ``attention_masks`` | the paper's Fig. 5: attention masks per scoop phase |
 | ``plots``, ``video``, ``scoop_report`` | signal plots, mp4, the scoop recipe's report |

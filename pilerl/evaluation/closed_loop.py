@@ -73,7 +73,11 @@ def run_closed_loop(
         warn_if_other_control_rate(checkpoint, float(control_hz))
     controller = resolve_controller(controller)  # a saved actor is read once, here
     records = evaluate(controller, plan, workers=workers, progress=progress)
-    summary = summarize(records, groups=get_simulator(plan.simulator).condition_groups)
+    summary = summarize(
+        records,
+        groups=get_simulator(plan.simulator).condition_groups,
+        simulator=plan.simulator,
+    )
     # --- results first: a person can read them while the videos render
     write_results(records, summary, out_dir)
     pooled = set(summary) - set(plan.conditions)

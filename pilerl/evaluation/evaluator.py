@@ -35,28 +35,15 @@ from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
 from pilerl.sim.rollout import (
     Rollout,
     RowByRow,
-    control_names,
     control_period_s,
     make_rollout_env,
     rollout,
 )
 from pilerl.sim.torchrl_env import SimulatorBatchEnv
 
-from .failures import BOOM_ANGLE_SENSOR, FAILURE_MODES, PENETRATION_M, failure_mode, first_lift_step
+from .failures import episode_outcome
 from .metrics import fill_and_cycle_time, wilson_interval
 
-# ``info`` entries an episode record is made of (NaN where a simulator reports none), beside
-# the simulator's declared success and fill keys (``evaluation_info``)
-EVALUATION_INFO = (
-    "start_distance_m",
-    "approach_angle_rad",
-    "scoop_finished",
-    "elapsed_s",
-    "wheel_slip_m_s",
-    "cutting_depth_m",
-    "spilled_kg",
-    "tipped",
-)
 MAX_EPISODES_PER_ROLLOUT = 8  # TorchRL's per-step cost is paid once for a chunk's episodes
 
 
@@ -181,10 +168,10 @@ _ENVS: dict[tuple, SimulatorBatchEnv] = {}
 
 def evaluation_info(simulator: str) -> tuple[str, ...]:
     """The ``info`` entries an evaluation of ``simulator`` carries: its declared success and
-    fill keys, then ``EVALUATION_INFO``."""
+    fill keys, then its declared ``episode_info``."""
     plugin = get_simulator(simulator)
     declared = (plugin.success_key, *((plugin.fill_key,) if plugin.fill_key else ()))
-    return tuple(dict.fromkeys((*declared, *EVALUATION_INFO)))
+    return tuple(dict.fromkeys((*declared, *plugin.episode_info)))
 
 
 def _cached_env(plan: EvaluationPlan, condition: str, num_envs: int) -> SimulatorBatchEnv:
@@ -231,9 +218,6 @@ def _run_chunk(controller, plan: EvaluationPlan, condition: str, first: int, cou
     torch.set_num_threads(1)
     env = _cached_env(plan, condition, count)
     run = rollout(env, controller.policy(env), seed=plan.episode_seed(first))
-    names = control_names(env)
-    boom = names.index("boom") if "boom" in names else None
-    plugin = get_simulator(plan.simulator)
     return [
         episode_record(
             run,
@@ -241,9 +225,7 @@ def _run_chunk(controller, plan: EvaluationPlan, condition: str, first: int, cou
             controller=controller.name,
             condition=condition,
             index=first + i,
-            boom=boom,
-            success_key=plugin.success_key,
-            fill_key=plugin.fill_key,
+            simulator=plan.simulator,
         )
         for i in range(count)
     ]
@@ -256,64 +238,26 @@ def episode_record(
     controller: str,
     condition: str,
     index: int,
-    boom: int | None,
-    success_key: str = "success",
-    fill_key: str | None = "fill_fraction",
+    simulator: str = DEFAULT_SIMULATOR,
 ) -> dict:
     """One row of ``episodes.csv``: episode ``episode`` of ``run`` (evaluation index
-    ``index``), from its actions and the ``info`` the simulator reported (``success_key``
-    and ``fill_key`` are the simulator's declared ones; without a fill key the fill is the
-    success as 0/1)."""
-
-    def final(key: str, default: float = math.nan) -> float:
-        value = float(run.info(episode, key)[-1])
-        return default if math.isnan(value) else value
-
-    def trace(key: str) -> np.ndarray:  # after each step, 0 where not reported
-        return np.nan_to_num(run.info(episode, key)[1:], nan=0.0)
-
-    elapsed = run.info(episode, "elapsed_s")[1:]
-    depth = trace("cutting_depth_m")
-    rows = run.episode(episode)
-    actions = rows.get("action").numpy()
-    angles = None
-    if BOOM_ANGLE_SENSOR in rows:  # boom angle at reset, then after each step
-        before, after = rows.get(BOOM_ANGLE_SENSOR), rows.get(("next", BOOM_ANGLE_SENSOR))
-        angles = np.concatenate([before[:1].reshape(-1), after.reshape(-1)]).astype(np.float64)
-    lifted = first_lift_step(angles, actions[:, boom] if boom is not None else None)
-    dug_in = np.flatnonzero(depth >= PENETRATION_M)
-    first_lift_s = float(elapsed[lifted]) if lifted is not None else math.nan
-    penetration_s = float(elapsed[dug_in[0]]) if len(dug_in) else math.nan
-    success = bool(final(success_key, 0.0))
-    tipped = bool(final("tipped", 0.0))
-    finished = bool(final("scoop_finished", 0.0))
+    ``index``): its success and fill (the simulator's declared keys; without a fill key
+    the fill is the success as 0/1) and return, then the simulator's own columns and its
+    ``failure_mode`` (``pilerl.evaluation.failures``)."""
+    plugin = get_simulator(simulator)
+    success = float(run.info(episode, plugin.success_key)[-1])
+    success = bool(0.0 if math.isnan(success) else success)
+    fill = float(run.info(episode, plugin.fill_key)[-1]) if plugin.fill_key else float(success)
     rewards = run.episode(episode).get(("next", "reward"))[:, 0].numpy().astype(np.float64)
     return {
         "controller": controller,
         "condition": condition,
         "episode": index,
         "seed": run.seeds[episode],
-        "start_distance_m": float(run.info(episode, "start_distance_m")[0]),
-        "approach_angle_rad": float(run.info(episode, "approach_angle_rad")[0]),
-        "fill_fraction": final(fill_key) if fill_key else float(success),
+        "fill_fraction": fill,
         "success": success,
-        "scoop_finished": finished,
-        "elapsed_s": final("elapsed_s"),
-        "time_to_finish_s": final("elapsed_s") if finished else math.nan,
-        "max_wheel_slip_m_s": max(0.0, float(trace("wheel_slip_m_s").max())),
-        "spilled_kg": final("spilled_kg", 0.0),
         "return": float(np.cumsum(rewards)[-1]),  # summed step by step, as the env reported
-        "max_cutting_depth_m": max(0.0, float(depth.max())),
-        "first_lift_s": first_lift_s,
-        "penetration_s": penetration_s,
-        "tipped": tipped,
-        "failure_mode": failure_mode(
-            success=success,
-            tipped=tipped,
-            finished=finished,
-            first_lift_s=first_lift_s,
-            penetration_s=penetration_s,
-        ),
+        **episode_outcome(run, episode, plugin, success=success),
     }
 
 
@@ -360,8 +304,10 @@ def summarize(
     *,
     confidence: float = 0.95,
     groups: Mapping[str, Sequence[str]] | None = None,
+    simulator: str = DEFAULT_SIMULATOR,
 ) -> dict[str, dict]:
-    """Per condition: success rate with its Wilson interval, fill, time, slip and spill.
+    """Per condition: success rate with its Wilson interval, fill, the simulator's own
+    numbers (the pile loader's time, slip and spill) and failure modes.
 
     For each of ``groups`` (the simulator's declared condition groups) with two or more
     tested conditions, a pooled entry is added: the pile loader's ``winter`` pools A-D,
@@ -373,16 +319,21 @@ def summarize(
         tested = [c for c in members if c in rows]
         if len(tested) >= 2 and group not in rows:
             rows[group] = [r for r in records if r["condition"] in tested]
-    return {name: summarize_rows(group, confidence) for name, group in rows.items()}
+    return {
+        name: summarize_rows(group, confidence, simulator=simulator) for name, group in rows.items()
+    }
 
 
-def summarize_rows(rows: Sequence[dict], confidence: float = 0.95) -> dict:
-    """Success (with its Wilson interval), fill, time, slip, spill and failure modes of
-    any set of episode records."""
+def summarize_rows(
+    rows: Sequence[dict], confidence: float = 0.95, *, simulator: str = DEFAULT_SIMULATOR
+) -> dict:
+    """Success (with its Wilson interval), fill, the simulator's own summary numbers
+    (``summary_columns``) and a count of each of its declared failure modes, of any set of
+    episode records of ``simulator``."""
+    plugin = get_simulator(simulator)
     successes = sum(r["success"] for r in rows)
     low, high = wilson_interval(successes, len(rows), confidence=confidence)
     fills = [r["fill_fraction"] for r in rows]
-    finish = [r["time_to_finish_s"] for r in rows if r["success"]]
     return {
         "episodes": len(rows),
         "successes": successes,
@@ -393,11 +344,9 @@ def summarize_rows(rows: Sequence[dict], confidence: float = 0.95) -> dict:
         "fill_median": statistics.median(fills),
         "fill_min": min(fills),
         "fill_max": max(fills),
-        "time_to_fill_s_mean": statistics.fmean(finish) if finish else math.nan,
-        "max_wheel_slip_m_s_mean": statistics.fmean(r["max_wheel_slip_m_s"] for r in rows),
-        "spilled_kg_mean": statistics.fmean(r["spilled_kg"] for r in rows),
+        **plugin.summary_numbers(rows),
         "failure_modes": {
-            mode: sum(r.get("failure_mode") == mode for r in rows) for mode in FAILURE_MODES
+            mode: sum(r.get("failure_mode") == mode for r in rows) for mode in plugin.failure_modes
         },
         **fill_and_cycle_time(rows),
     }
@@ -432,7 +381,6 @@ def write_results(records: Sequence[dict], summary: dict, out_dir: str | Path) -
 
 
 __all__ = [
-    "FAILURE_MODES",
     "ActorController",
     "ActorWeights",
     "EvaluationPlan",
@@ -441,7 +389,6 @@ __all__ = [
     "clear_caches",
     "episode_record",
     "evaluate",
-    "failure_mode",
     "resolve_controller",
     "success_metrics",
     "summarize",

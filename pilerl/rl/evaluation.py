@@ -22,6 +22,7 @@ from pilerl.evaluation.evaluator import (
     summarize_rows,
 )
 from pilerl.figures import legend_outside, plt, save_figure
+from pilerl.sim import DEFAULT_SIMULATOR
 
 # never NaN, so results.json stays strict JSON (time to fill is NaN without a success)
 POOLED_FIELDS = (
@@ -36,16 +37,21 @@ POOLED_FIELDS = (
 
 
 def pool_groups(
-    records: Sequence[dict], groups: Mapping[str, Sequence[str]], *, confidence: float = 0.95
+    records: Sequence[dict],
+    groups: Mapping[str, Sequence[str]],
+    *,
+    confidence: float = 0.95,
+    simulator: str = DEFAULT_SIMULATOR,
 ) -> dict[str, dict]:
     """Per group, from the evaluator's summary of the episodes in the group's conditions:
-    ``POOLED_FIELDS`` (success with its Wilson interval, mean fill, failure modes)."""
+    ``POOLED_FIELDS`` (success with its Wilson interval, mean fill, ``simulator``'s failure
+    modes)."""
     pooled = {}
     for group, conditions in groups.items():
         rows = [r for r in records if r["condition"] in set(conditions)]
         if not rows:
             raise ValueError(f"evaluation group {group!r}: no episodes in {list(conditions)}")
-        summary = summarize_rows(rows, confidence)
+        summary = summarize_rows(rows, confidence, simulator=simulator)
         pooled[group] = {name: summary[name] for name in POOLED_FIELDS}
     return pooled
 
@@ -75,7 +81,8 @@ def evaluate_groups(
         ActorController(str(actor)) if isinstance(actor, str | Path) else ActorWeights.of(actor)
     )
     records = evaluate(controller, plan, workers=workers, progress=False)
-    return pool_groups(records, groups, confidence=confidence), records, plan
+    pooled = pool_groups(records, groups, confidence=confidence, simulator=simulator)
+    return pooled, records, plan
 
 
 def plot_success_curve(

@@ -224,7 +224,10 @@ class _Run:
         self.state["evaluation_s"] += time.perf_counter() - started
         conditions = dict.fromkeys(r["condition"] for r in records)
         per_condition = pool_groups(
-            records, {c: [c] for c in conditions}, confidence=evaluation.confidence
+            records,
+            {c: [c] for c in conditions},
+            confidence=evaluation.confidence,
+            simulator=self.config.env.simulator,
         )
         return pooled, per_condition, records, plan
 

@@ -5,7 +5,14 @@ A plugin's ``PLUGIN`` is a plain mapping (the plugin imports nothing from pilerl
 reads a simulator's words from here (sensor units and ranges, controls, conditions and
 their groups, reward parts, the ``info`` keys of success and fill) and never spells a
 plugin's own names. Heavy things (the env class, its options dataclass, its scripted
-expert) are named as ``module:attribute`` strings and imported only when used.
+expert, its episode rules) are named as ``module:attribute`` strings and imported only
+when used.
+
+What an evaluation says about an episode beyond success and fill is the simulator's too:
+the ``info`` entries it reports (``episode_info``, with units), its failure modes, and
+optionally its own rules turning an episode into record columns (``episode_columns``)
+and records into summary numbers (``summary_columns``). Without them an evaluation
+records the last value of each declared ``info`` entry and names a failure ``failed``.
 """
 
 from __future__ import annotations
@@ -23,6 +30,8 @@ _ENTRY_POINT = re.compile(r"^[\w.]+:[\w]+$")
 _NAME = re.compile(r"^[A-Za-z_][\w-]*$")
 
 ALL_CONDITIONS = "all"  # the group every simulator has: all its conditions, in declared order
+SUCCESS = "success"  # the failure mode of an episode that succeeded
+FAILED = "failed"  # the one failure mode of a simulator that declares none
 CHECK_PERIOD_S = 0.05  # control period [s] of the expert built only to check its options
 REQUIRED_FIELDS = ("name", "gym_id", "entry_point", "sensors", "controls", "conditions", "options")
 
@@ -74,6 +83,26 @@ class SimulatorPlugin:
             ``None``: no expert (nothing to record demonstrations with).
         renders: the env takes ``render_mode="rgb_array"``, ``render_size`` and ``camera``
             (videos); ``False``: recipes make no videos of it.
+        episode_info: ``info`` key -> unit of the entries an evaluation records from every
+            step besides success and fill (the pile loader: ``cutting_depth_m`` [m],
+            ``tipped`` [bool] ...); ``bool`` marks a flag.
+        failure_modes: names of the ways an episode fails (the pile loader:
+            ``early_boom_rise``, ``no_boom_rise`` ...); every evaluation summary counts
+            each one. Default: ``failed``.
+        episode_columns: ``module:function`` turning one evaluated episode into the
+            simulator's columns of its record, ``failure_mode`` among them (see
+            ``docs/simulator_plugins.md``); ``None``: the last value of each
+            ``episode_info`` entry, and ``failed`` for a failure.
+        summary_columns: ``module:function`` turning a list of records into the
+            simulator's numbers of their summary (the pile loader: mean slip, spill and
+            time to fill); ``None``: none.
+        curriculum: mixture ``{condition or group: weight}`` that fine-tuning practises by
+            default (``curriculum=default``); the pile loader: ``winter`` and ``summer``.
+            Default: every condition, weight 1.
+        example_conditions: conditions (or groups) ``recipes/scoop.py`` shows by default,
+            one scripted episode each; default: the first declared condition.
+        report_notes: Markdown lines ``recipes/scoop.py`` adds to its report (how to read
+            the numbers); default: none.
         description: one line for listings.
     """
 
@@ -90,13 +119,26 @@ class SimulatorPlugin:
     fill_key: str | None = None
     scripted_expert: str | None = None
     renders: bool = False
+    episode_info: Mapping[str, str] = field(default_factory=dict)
+    failure_modes: tuple[str, ...] = (FAILED,)
+    episode_columns: str | None = None
+    summary_columns: str | None = None
+    curriculum: Mapping[str, float] = field(default_factory=lambda: {ALL_CONDITIONS: 1.0})
+    example_conditions: tuple[str, ...] = ()
+    report_notes: tuple[str, ...] = ()
     description: str = ""
 
     def __post_init__(self) -> None:
         where = f"SimulatorPlugin({self.name!r})"
         if not _GYM_ID.match(self.gym_id):
             raise ValueError(f"{where}.gym_id: expected 'namespace/Name-vN', got {self.gym_id!r}")
-        for key in ("entry_point", "options", "scripted_expert"):
+        for key in (
+            "entry_point",
+            "options",
+            "scripted_expert",
+            "episode_columns",
+            "summary_columns",
+        ):
             value = getattr(self, key)
             if value is not None and not (isinstance(value, str) and _ENTRY_POINT.match(value)):
                 raise ValueError(f"{where}.{key}: expected 'module:attribute', got {value!r}")
@@ -119,6 +161,47 @@ class SimulatorPlugin:
             groups[str(group)] = members
         object.__setattr__(self, "condition_groups", groups)
         object.__setattr__(self, "reward_parts", _names(self.reward_parts, f"{where}.reward_parts"))
+        self._check_evaluation_words(where)
+
+    def _check_evaluation_words(self, where: str) -> None:
+        """``episode_info``, ``failure_modes``, ``curriculum``, ``example_conditions`` and
+        ``report_notes`` are well formed and name declared conditions."""
+        if not isinstance(self.episode_info, Mapping):
+            raise ValueError(f"{where}.episode_info: expected a mapping info key -> unit")
+        _names(list(self.episode_info), f"{where}.episode_info")
+        info = {str(k): str(v) for k, v in self.episode_info.items()}
+        clash = sorted({self.success_key, self.fill_key} & set(info))
+        if clash:
+            raise ValueError(
+                f"{where}.episode_info: {clash} are the success or fill key, recorded anyway"
+            )
+        object.__setattr__(self, "episode_info", info)
+        modes = _names(self.failure_modes, f"{where}.failure_modes")
+        if not modes or SUCCESS in modes:
+            raise ValueError(
+                f"{where}.failure_modes: need at least one name, and {SUCCESS!r} is not a "
+                f"failure; got {list(modes)}"
+            )
+        object.__setattr__(self, "failure_modes", modes)
+        if not isinstance(self.curriculum, Mapping) or not self.curriculum:
+            raise ValueError(f"{where}.curriculum: expected a mapping condition -> weight")
+        curriculum = {str(k): float(v) for k, v in self.curriculum.items()}
+        if not all(math.isfinite(w) and w >= 0 for w in curriculum.values()) or not any(
+            curriculum.values()
+        ):
+            raise ValueError(
+                f"{where}.curriculum: weights must be finite, >= 0 and not all 0, got {curriculum}"
+            )
+        object.__setattr__(self, "curriculum", curriculum)
+        self.resolve_mixture(curriculum, where=f"{where}.curriculum")
+        examples = _names(self.example_conditions, f"{where}.example_conditions")
+        self.resolve_conditions(examples, where=f"{where}.example_conditions")
+        object.__setattr__(self, "example_conditions", examples or (next(iter(self.conditions)),))
+        if isinstance(self.report_notes, str) or not all(
+            isinstance(line, str) for line in self.report_notes
+        ):
+            raise ValueError(f"{where}.report_notes: expected a list of Markdown lines")
+        object.__setattr__(self, "report_notes", tuple(self.report_notes))
 
     @classmethod
     def from_declaration(cls, declaration: object, *, where: str) -> SimulatorPlugin:
@@ -195,6 +278,55 @@ class SimulatorPlugin:
         fill = float(info[self.fill_key]) if self.fill_key else float(success)
         return success, fill
 
+    def info_flags(self) -> tuple[str, ...]:
+        """The declared ``episode_info`` entries that are flags (unit ``bool``)."""
+        return tuple(k for k, unit in self.episode_info.items() if unit == "bool")
+
+    # ------------------------------------------------------------------ evaluation
+    def episode_outcome(
+        self,
+        *,
+        info: Mapping[str, Any],
+        sensors: Mapping[str, Any],
+        controls: Mapping[str, Any],
+        success: bool,
+        where: str = "episode",
+    ) -> dict[str, Any]:
+        """The simulator's columns of an evaluated episode's record, ``failure_mode`` last
+        unless its ``episode_columns`` orders it elsewhere.
+
+        ``info``: each ``episode_info`` entry, float64 [T + 1] (at reset, then after each
+        step; NaN where not reported); ``sensors``: each sensor's readings [T + 1];
+        ``controls``: each control's commands [T]; ``success``: the episode's success.
+        A failure mode the simulator did not declare fails naming ``where``.
+        """
+        if self.episode_columns is None:
+            columns: dict[str, Any] = {}
+            for key, values in info.items():
+                value = float(values[-1])
+                columns[key] = bool(value) if key in self.info_flags() else value
+            columns["failure_mode"] = SUCCESS if success else FAILED
+            return columns
+        columns = dict(
+            resolve(self.episode_columns)(
+                info=info, sensors=sensors, controls=controls, success=success
+            )
+        )
+        mode = columns.get("failure_mode")
+        if mode not in (SUCCESS, *self.failure_modes) or (mode == SUCCESS) != success:
+            raise ValueError(
+                f"{where}: simulator {self.name!r}'s episode_columns named the failure mode "
+                f"{mode!r} of an episode with success={success}; expected {SUCCESS!r} for a "
+                f"success, else one of its failure_modes {list(self.failure_modes)}"
+            )
+        return columns
+
+    def summary_numbers(self, records: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+        """The simulator's numbers of a summary of ``records`` (``summary_columns``)."""
+        if self.summary_columns is None:
+            return {}
+        return dict(resolve(self.summary_columns)(records))
+
     # ------------------------------------------------------------------ options
     def options_class(self) -> type:
         """The plugin's options dataclass (imported now)."""
@@ -228,6 +360,13 @@ class SimulatorPlugin:
             self.make_expert(dt=CHECK_PERIOD_S, rng=rng, **dict(options))
         except (TypeError, ValueError) as error:
             raise ValueError(f"{where}: {error}") from None
+
+    def expert_phases(self) -> tuple[str, ...]:
+        """The phase names of the scripted expert (its ``PHASES``): what the ``phase``
+        index recorded with its demonstrations points into; ``()`` without an expert."""
+        if self.scripted_expert is None:
+            return ()
+        return tuple(getattr(self.make_expert(dt=CHECK_PERIOD_S), "PHASES", ()))
 
     def make_expert(self, *, dt: float, rng=None, **options):
         """The simulator's scripted expert (``make_expert`` of the plugin); ``rng=None``:

@@ -10,16 +10,16 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 import pytest
-from pilerl_pile_loader.latency import ActuationDelay
-
-import pilerl  # noqa: F401  (registers pilerl/PileLoading-v0)
-from pilerl.evaluation.evaluator import EvaluationPlan, evaluate, summarize
-from pilerl.evaluation.failures import (
+from pilerl_pile_loader.failures import (
     LIFT_COMMAND,
     LIFT_RISE_RAD,
     failure_mode,
     first_lift_step,
 )
+from pilerl_pile_loader.latency import ActuationDelay
+
+import pilerl  # noqa: F401  (registers pilerl/PileLoading-v0)
+from pilerl.evaluation.evaluator import EvaluationPlan, evaluate, summarize
 from pilerl.evaluation.metrics import fill_and_cycle_time
 from pilerl.operators import OperatorModule
 from pilerl.sim.rollout import control_period_s

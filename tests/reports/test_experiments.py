@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from pilerl_pile_loader.failures import failure_mode
 from test_recipes import run_recipe
 from test_training import train_bc_recipe
 
@@ -16,7 +17,6 @@ from pilerl.evaluation.evaluator import (
     EvaluationPlan,
     ScriptedController,
     evaluate,
-    failure_mode,
     summarize,
 )
 from pilerl.policies import controller_inputs
