@@ -192,7 +192,9 @@ class CurriculumStage:
     Attributes:
         frames: environment steps in this stage.
         conditions: condition (or group: each member gets its weight) -> relative weight;
-            each episode draws one condition.
+            each episode draws one condition. Empty: the simulator's declared
+            ``curriculum`` (the pile loader: winter A-D and summer; others by default:
+            every condition), so ``curriculum=default`` works with any simulator.
     """
 
     frames: int = MISSING
@@ -213,11 +215,9 @@ class CurriculumConfig:
             raise ValueError("curriculum.stages: need at least one stage")
         for i, stage in enumerate(self.stages):
             checks.positive(f"curriculum.stages[{i}].frames", stage.frames)
-            if not stage.conditions:
-                raise ValueError(f"curriculum.stages[{i}].conditions: empty mixture")
             for condition, weight in stage.conditions.items():
                 checks.non_negative(f"curriculum.stages[{i}].conditions.{condition}", weight)
-            if sum(stage.conditions.values()) <= 0:
+            if stage.conditions and sum(stage.conditions.values()) <= 0:
                 raise ValueError(f"curriculum.stages[{i}].conditions: weights sum to 0")
 
 
@@ -429,7 +429,7 @@ def _simulator_words(
         dataclasses.replace(
             stage,
             conditions=plugin.resolve_mixture(
-                stage.conditions, where=f"curriculum.stages[{i}].conditions"
+                stage.conditions or plugin.curriculum, where=f"curriculum.stages[{i}].conditions"
             ),
         )
         for i, stage in enumerate(config.curriculum.stages)
