@@ -1,6 +1,7 @@
 """Record, render and report scripted scoops, one per condition (the main job for now).
 
-    python recipes/scoop.py
+    python recipes/scoop.py                     # the simulator's example conditions
+    python recipes/scoop.py env=toy_cart        # any installed simulator
     python recipes/scoop.py conditions=[summer,winter_b] env.soil=particles video=false
 
 ``video=auto`` (default) renders when this machine can; ``video=true`` refuses before any
@@ -69,11 +70,11 @@ def main(config: ScoopConfig, run: Run) -> dict[str, float]:
         ranges = sensor_ranges(env.simulators[0])
         env.close()
         episodes[condition] = episode
-        summaries[condition] = summarize(episode)
+        summaries[condition] = summarize(episode, simulator=config.env.simulator)
         log.info("%s: %s", condition, summaries[condition])
 
         # --- artefacts a person can look at
-        write_trace_csv(episode, f"{out_dir}/trace_{condition}.csv")
+        write_trace_csv(episode, f"{out_dir}/trace_{condition}.csv", simulator=config.env.simulator)
         if video:
             frames = annotate_frames(episode, condition=condition, sensor_ranges=ranges)
             write_mp4(frames, f"{out_dir}/scoop_{condition}.mp4", fps=episode.frame_hz)
@@ -82,15 +83,19 @@ def main(config: ScoopConfig, run: Run) -> dict[str, float]:
     # --- report
     plot_scoop(episodes, f"{out_dir}/scoop_signals.png")
     report = write_scoop_report(
-        summaries, out_dir, seed=config.seed, figures=["scoop_signals.png"], videos=videos
+        summaries,
+        out_dir,
+        seed=config.seed,
+        figures=["scoop_signals.png"],
+        videos=videos,
+        simulator=config.env.simulator,
     )
     log.info("report: %s", report)
-    return {
+    return {  # every finite number of the summaries (a simulator may not report some)
         f"{condition}_{key}": float(value)
         for condition, summary in summaries.items()
         for key, value in summary.items()
-        if key in ("fill_fraction", "success", "duration_s", "return", "spilled_kg")
-        and math.isfinite(float(value))  # a simulator may not report a fill or a spill
+        if isinstance(value, int | float) and math.isfinite(float(value))
     }
 
 

@@ -14,6 +14,7 @@ import numpy as np
 from tensordict import TensorDictBase
 
 from pilerl.operators import OperatorModule, operator_phases
+from pilerl.sim import get_simulator
 from pilerl.sim.rollout import (
     Rollout,
     control_period_s,
@@ -53,6 +54,8 @@ class Episode:
         actions: (T, action_dim) controls sent.
         rewards: per-step reward.
         traces: selected ``info`` values per step (``INFO_TRACES`` that the env reports).
+        info: every carried ``info`` entry at reset, then after each step [T + 1] (NaN
+            where not reported): what the simulator's episode rules read.
         final_info: the last step's ``info``; start_info: ``info`` at reset (the
             ``EPISODE_INFO`` entries the simulator reports).
         start_sensors: sensor readings at reset (before the first action).
@@ -75,13 +78,17 @@ class Episode:
     phases: list[str] = field(default_factory=list)
     frames: list[np.ndarray] = field(default_factory=list)
     frame_hz: float = 0.0
+    info: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def make_episode_env(
     simulator: str, env_kwargs: Mapping[str, object], *, info_keys: tuple[str, ...] = ()
 ) -> SimulatorBatchEnv:
-    """One simulator for ``run_episode``, carrying ``EPISODE_INFO`` (and ``info_keys``)."""
-    keys = tuple(dict.fromkeys((*EPISODE_INFO, *info_keys)))
+    """One simulator for ``run_episode``, carrying ``EPISODE_INFO``, the simulator's declared
+    success, fill and ``episode_info`` entries, and ``info_keys``."""
+    plugin = get_simulator(simulator)
+    declared = (plugin.success_key, *((plugin.fill_key,) if plugin.fill_key else ()))
+    keys = tuple(dict.fromkeys((*EPISODE_INFO, *declared, *plugin.episode_info, *info_keys)))
     return make_rollout_env(simulator, env_kwargs, num_envs=1, info_keys=keys)
 
 
@@ -146,6 +153,7 @@ def episode_of(
         phases=phase_names,
         frames=run.frames[index] if run.frames else [],
         frame_hz=frame_hz,
+        info={k: run.info(index, k) for k in run.info_keys},
     )
 
 

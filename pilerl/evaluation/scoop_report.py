@@ -1,44 +1,57 @@
-"""Summaries of recorded scoops: per-episode numbers, a CSV trace, a Markdown report."""
+"""Summaries of recorded scoops: per-episode numbers, a CSV trace, a Markdown report.
+
+Every number is in the simulator's words: its declared success and fill, its own episode
+columns (``episode_columns``: the pile loader's start pose, finish, slip, spill, lift
+and failure mode) and the peak of each sensor, named with its unit
+(``peak_drive_pressure_mpa``).
+"""
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
 
 from pilerl.io import atomic_path, write_text_atomic
+from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
 
 from .episode import Episode
 
-CONTROL_NAMES = ("boom", "bucket", "throttle")
 
-
-def summarize(ep: Episode) -> dict[str, float | bool | str]:
-    """The numbers a person checks first after a scoop."""
-    info = ep.final_info
+def summarize(ep: Episode, *, simulator: str = DEFAULT_SIMULATOR) -> dict[str, float | bool | str]:
+    """The numbers a person checks first after a scoop of ``simulator``."""
+    plugin = get_simulator(simulator)
+    final = ep.final_info
+    success = bool(final.get(plugin.success_key, False))
+    fill = float(final.get(plugin.fill_key, np.nan)) if plugin.fill_key else float(success)
+    declared = {k: ep.info[k] for k in plugin.episode_info if k in ep.info}
+    sensors = {
+        name: np.concatenate([[ep.start_sensors[name]], ep.sensors[name]])
+        for name in plugin.sensors
+        if name in ep.sensors and name in ep.start_sensors
+    }
+    controls = {name: ep.actions[:, i] for i, name in enumerate(plugin.controls)}
     summary: dict[str, float | bool | str] = {
-        "start_distance_m": float(ep.start_info.get("start_distance_m", float("nan"))),
-        "approach_angle_deg": float(np.degrees(ep.start_info.get("approach_angle_rad", np.nan))),
-        "fill_fraction": float(info.get("fill_fraction", np.nan)),
-        "success": bool(info.get("success", False)),
-        "scoop_finished": bool(info.get("scoop_finished", False)),
+        "fill_fraction": fill,
+        "success": success,
         "duration_s": float(ep.time_s[-1]),
         "return": float(ep.rewards.sum()),
-        "spilled_kg": float(info.get("spilled_kg", np.nan)),
+        **plugin.episode_outcome(
+            info=declared, sensors=sensors, controls=controls, success=success, where="scoop"
+        ),
     }
-    for name in ("drive_pressure", "telescope_pressure"):
-        if name in ep.sensors:
-            summary[f"peak_{name}_mpa"] = float(ep.sensors[name].max())
-    if "wheel_slip_m_s" in ep.traces:
-        summary["peak_wheel_slip_m_s"] = float(ep.traces["wheel_slip_m_s"].max())
+    for name, readings in ep.sensors.items():
+        unit = re.sub(r"\W+", "_", plugin.sensors[name].unit.lower()).strip("_")
+        summary[f"peak_{name}_{unit}" if unit else f"peak_{name}"] = float(readings.max())
     return summary
 
 
-def write_trace_csv(ep: Episode, path: str | Path) -> Path:
-    """One row per control step: time, sensors, controls, traces."""
+def write_trace_csv(ep: Episode, path: str | Path, *, simulator: str = DEFAULT_SIMULATOR) -> Path:
+    """One row per control step: time, sensors, controls (``u_<control>``), traces."""
     columns = {"time_s": ep.time_s, **ep.sensors}
-    for i, name in enumerate(CONTROL_NAMES[: ep.actions.shape[1]]):
+    for i, name in enumerate(get_simulator(simulator).controls[: ep.actions.shape[1]]):
         columns[f"u_{name}"] = ep.actions[:, i]
     columns.update(ep.traces)
     columns["reward"] = ep.rewards
@@ -56,8 +69,10 @@ def write_scoop_report(
     seed: int,
     figures: list[str],
     videos: list[str],
+    simulator: str = DEFAULT_SIMULATOR,
 ) -> Path:
-    """``summary.json`` and ``report.md`` for scoops recorded under several conditions."""
+    """``summary.json`` and ``report.md`` for scoops recorded under several conditions (with
+    the simulator's ``report_notes`` on reading them)."""
     out_dir = Path(out_dir)
     write_text_atomic(out_dir / "summary.json", json.dumps(summaries, indent=2))
     keys = list(next(iter(summaries.values())))
@@ -75,19 +90,9 @@ def write_scoop_report(
     lines += ["", "## Figures", ""] + [f"![{f}]({f})" for f in figures]
     if videos:
         lines += ["", "## Videos", ""] + [f"- [{v}]({v})" for v in videos]
-    lines += [
-        "",
-        "## Reading the numbers against the paper",
-        "",
-        "- The paper's winter failure: wheel slip on ice caps the drive pressure p_d, so an",
-        "  operator (or a controller) that waits for p_d to rise before lifting never lifts.",
-        "  Compare `peak_drive_pressure_mpa` between summer and the icy conditions (winter_b,",
-        "  winter_c): summer reaches the HST relief pressure (25 MPa), ice does not.",
-        "- The telescope pressure p_t still rises on ice as the bucket penetrates",
-        "  (`peak_telescope_pressure_mpa`), which is why the paper found p_t essential.",
-        "- The simulator's numbers are a model's (docs/machine_model.md lists every",
-        "  assumption); they are not measurements of the paper's machine.",
-    ]
+    notes = get_simulator(simulator).report_notes
+    if notes:
+        lines += ["", "## Reading the numbers", "", *notes]
     path = out_dir / "report.md"
     write_text_atomic(path, "\n".join(lines) + "\n")
     return path

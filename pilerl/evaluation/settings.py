@@ -119,7 +119,9 @@ class ScoopConfig:
         env: simulator arguments; ``env.condition`` is replaced by each of ``conditions``.
         expert: options of the simulator's nominal scripted expert (the pile loader's:
             ``trigger_sensor`` and its ``OperatorStyle`` fields); ``{}``: its defaults.
-        conditions: conditions to scoop in, one episode each.
+        conditions: conditions (or groups) to scoop in, one episode each; ``None``: the
+            simulator's declared ``example_conditions`` (the pile loader's: summer and
+            winter_c).
         seed: episode seed (start distance and approach angle follow from it).
         video: write an mp4 per condition: ``auto`` (when this machine can render, else
             one warning), ``true`` (refuse before any work if it cannot) or ``false``.
@@ -129,7 +131,7 @@ class ScoopConfig:
 
     env: EnvConfig = field(default_factory=EnvConfig)
     expert: dict[str, Any] = field(default_factory=dict)
-    conditions: list[str] = field(default_factory=lambda: ["summer", "winter_c"])
+    conditions: list[str] | None = None
     seed: int = 0
     video: str = "auto"
     render_width: int = 640
@@ -138,6 +140,8 @@ class ScoopConfig:
     output_dir: str = MISSING  # set by the primary YAML to Hydra's run directory
 
     def __post_init__(self) -> None:
+        if self.conditions is None:
+            self.conditions = list(self.env.plugin().example_conditions)
         checks.names("conditions", self.conditions)
         self.env.plugin().resolve_conditions(self.conditions, where="conditions")
         self.env.plugin().check_expert_options(self.expert, where="expert", drawn=False)
