@@ -24,9 +24,9 @@ from tensordict.nn import TensorDictModule
 
 from pilerl.figures import legend_outside, save_figure
 from pilerl.policies import INPUT_MASK_KEY, OUTPUT_MASK_KEY, actor_policy
+from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
 
 from .control_signals import (
-    CONTROLS,
     IMPACT_WINDOW_S,
     SCOOP_PHASES,
     phase_legend_handles,
@@ -129,10 +129,13 @@ def mask_trace(
     *,
     impact_window_s: float = IMPACT_WINDOW_S,
     where: str = "episode",
+    simulator: str = DEFAULT_SIMULATOR,
 ) -> MaskTrace:
     """The actor's masks at every row of one demonstration, with the scoop phases."""
     check_attention_actor(actor)
-    phases = scoop_phases(episode, impact_window_s=impact_window_s, where=where)
+    phases = scoop_phases(
+        episode, impact_window_s=impact_window_s, where=where, simulator=simulator
+    )
     outputs = run_open_loop(actor, episode, where=where)
     output_mask = outputs.get(OUTPUT_MASK_KEY, None)
     return MaskTrace(
@@ -147,8 +150,9 @@ def phase_masks(
     actor: TensorDictModule,
     episodes: Iterable[TensorDictBase],
     *,
-    controls: Sequence[str] = CONTROLS,
+    controls: Sequence[str] | None = None,
     impact_window_s: float = IMPACT_WINDOW_S,
+    simulator: str = DEFAULT_SIMULATOR,
 ) -> PhaseMasks:
     """Average an attention actor's masks per scoop phase over demonstrations.
 
@@ -156,14 +160,24 @@ def phase_masks(
         actor: an ANNet or DANNet actor (``make_actor`` / ``load_actor``).
         episodes: demonstrations with the operator's phase per row (an ``EpisodeStore``
             iterates its episodes; pass ``[store.load(i) for i in ids]`` for a subset).
-        controls: names of the controls, in action order (``EpisodeStore.controls``).
+        controls: names of the controls, in action order (``EpisodeStore.controls``);
+            ``None``: the simulator's declared controls.
         impact_window_s: length of the impact phase [s] (see ``scoop_phases``).
+        simulator: the simulator the demonstrations were recorded in.
     """
+    if controls is None:
+        controls = get_simulator(simulator).controls
     check_attention_actor(actor)
     policy = actor_policy(actor)
     sensors = list(policy.config.sensors)
     traces = [
-        mask_trace(actor, episode, impact_window_s=impact_window_s, where=f"episode {i}")
+        mask_trace(
+            actor,
+            episode,
+            impact_window_s=impact_window_s,
+            where=f"episode {i}",
+            simulator=simulator,
+        )
         for i, episode in enumerate(episodes)
     ]
     if not traces:

@@ -7,7 +7,10 @@ the offline validation loss of behaviour cloning measures
 
 The scoop phases of the paper's Fig. 5 (``SCOOP_PHASES``) are derived from the scripted
 operator's phase, which ``pilerl.data.recorder`` stores per row under the key ``phase``
-(an index into ``pilerl.operators.PHASES`` = approach, fill, finish):
+(an index into the recording simulator's expert's ``PHASES``,
+``SimulatorPlugin.expert_phases``; the pile loader's: approach, fill, finish). The
+mapping below is the paper's, for a scooping expert with those three phases; the
+phase list itself is the simulator's:
 
 | scoop phase | rows | paper |
 |---|---|---|
@@ -38,13 +41,12 @@ from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule
 
 from pilerl.figures import legend_outside, save_figure
+from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
 
-# the phases recorded with scripted demonstrations (the ``phase`` column indexes them): the
-# operator's own phases, of which the pile loader's expert declares these three
-OPERATOR_PHASES = ("approach", "fill", "finish")
-
-CONTROLS = ("boom", "bucket", "throttle")
 SCOOP_PHASES = ("approach", "impact", "filling", "finished")
+# the paper's Fig. 5: the scoop phase of each phase of a scooping expert (the first rows of
+# ``fill`` are ``impact``, see ``scoop_phases``)
+SCOOP_PHASE_OF_EXPERT_PHASE = {"approach": "approach", "fill": "filling", "finish": "finished"}
 IMPACT_WINDOW_S = 0.5  # length of the impact phase after the operator's impact cue [s]
 TIME_TOLERANCE_S = 1e-9  # recorded times are multiples of the control period
 OPERATOR_PHASE_KEY = "phase"  # per-row index into pilerl.operators.PHASES
@@ -66,13 +68,27 @@ def has_operator_phases(episode: TensorDictBase) -> bool:
 
 
 def scoop_phases(
-    episode: TensorDictBase, *, impact_window_s: float = IMPACT_WINDOW_S, where: str = "episode"
+    episode: TensorDictBase,
+    *,
+    impact_window_s: float = IMPACT_WINDOW_S,
+    where: str = "episode",
+    simulator: str = DEFAULT_SIMULATOR,
 ) -> np.ndarray:
-    """Scoop phase of every row, an index into ``SCOOP_PHASES`` (int64, shape [T]).
+    """Scoop phase of every row, an index into ``SCOOP_PHASES`` (int64, shape [T]), of an
+    episode recorded with ``simulator``'s scripted expert.
 
     See the module docstring for the mapping from the operator's phases. Raises
-    ``ValueError`` naming ``where`` if the episode has no operator phase or an unknown one.
+    ``ValueError`` naming ``where`` if the episode has no operator phase or an unknown one,
+    and naming the simulator if its expert is no scooping expert (phases other than
+    ``SCOOP_PHASE_OF_EXPERT_PHASE``'s).
     """
+    operator_phases = get_simulator(simulator).expert_phases()
+    if set(operator_phases) != set(SCOOP_PHASE_OF_EXPERT_PHASE):
+        raise ValueError(
+            f"{where}: scoop phases (the paper's Fig. 5) need a scooping expert with phases "
+            f"{list(SCOOP_PHASE_OF_EXPERT_PHASE)}; simulator {simulator!r}'s expert has "
+            f"{list(operator_phases)}"
+        )
     if not impact_window_s >= 0:
         raise ValueError(f"scoop_phases: impact_window_s must be >= 0, got {impact_window_s}")
     if not has_operator_phases(episode):
@@ -82,26 +98,25 @@ def scoop_phases(
             "and other operators have none)"
         )
     operator_phase = episode[OPERATOR_PHASE_KEY].numpy().astype(np.int64).reshape(-1)
-    bad = (operator_phase < 0) | (operator_phase >= len(OPERATOR_PHASES))
+    bad = (operator_phase < 0) | (operator_phase >= len(operator_phases))
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
         raise ValueError(
             f"{where}: {OPERATOR_PHASE_KEY!r} is {int(operator_phase[row])} at row {row}, "
-            f"not an index into the operator's phases {OPERATOR_PHASES}"
+            f"not an index into the operator's phases {operator_phases}"
         )
     time_s = episode["time_s"].numpy().astype(np.float64).reshape(-1)
-    in_fill = operator_phase == OPERATOR_PHASES.index("fill")
+    named = np.asarray(operator_phases)[operator_phase]
+    scoop_phase = {name: SCOOP_PHASES.index(p) for name, p in SCOOP_PHASE_OF_EXPERT_PHASE.items()}
+    in_fill = named == "fill"
     fill_starts = in_fill & ~np.concatenate([[False], in_fill[:-1]])
     fill_start_time_s = np.maximum.accumulate(np.where(fill_starts, time_s, -np.inf))
     # half-open window [start, start + impact_window_s); the tolerance absorbs the rounding
     # of recorded times (0.5 - 0.3 < 0.2 in floating point)
     is_impact = in_fill & (time_s - fill_start_time_s < impact_window_s - TIME_TOLERANCE_S)
 
-    phases = np.empty(len(operator_phase), dtype=np.int64)
-    phases[operator_phase == OPERATOR_PHASES.index("approach")] = SCOOP_PHASES.index("approach")
-    phases[in_fill] = SCOOP_PHASES.index("filling")
+    phases = np.asarray([scoop_phase[name] for name in named.tolist()], dtype=np.int64)
     phases[is_impact] = SCOOP_PHASES.index("impact")
-    phases[operator_phase == OPERATOR_PHASES.index("finish")] = SCOOP_PHASES.index("finished")
     return phases
 
 
@@ -180,19 +195,24 @@ def compare_controls(
     episode: TensorDictBase,
     actors: Mapping[str, TensorDictModule],
     *,
-    controls: Sequence[str] = CONTROLS,
+    controls: Sequence[str] | None = None,
     impact_window_s: float = IMPACT_WINDOW_S,
     where: str = "episode",
+    simulator: str = DEFAULT_SIMULATOR,
 ) -> ControlComparison:
     """Each actor's controls on a demonstration's own readings, and their errors.
 
     Args:
         episode: one demonstration (schema v1, e.g. ``EpisodeStore.load(i)``).
         actors: display name -> actor (from ``make_actor`` / ``load_actor``).
-        controls: names of the action's columns (``EpisodeStore.controls``).
+        controls: names of the action's columns (``EpisodeStore.controls``); ``None``:
+            the simulator's declared controls.
         impact_window_s: see ``scoop_phases``; used only if the episode has phases.
         where: how errors name the episode (e.g. ``"d_ii_summer episode 3"``).
+        simulator: the simulator the demonstration was recorded in.
     """
+    if controls is None:
+        controls = get_simulator(simulator).controls
     if not actors:
         raise ValueError("compare_controls: no actors given")
     demonstration = episode["action"].numpy().astype(np.float64)
@@ -217,7 +237,7 @@ def compare_controls(
             "all": float(squared_error.mean()),
         }
     phases = (
-        scoop_phases(episode, impact_window_s=impact_window_s, where=where)
+        scoop_phases(episode, impact_window_s=impact_window_s, where=where, simulator=simulator)
         if has_operator_phases(episode)
         else None
     )

@@ -11,7 +11,6 @@ from tensordict import TensorDict
 from pilerl.data import EpisodeMeta, EpisodeStore, make_episode
 from pilerl.evaluation.attention_masks import phase_masks, plot_attention_masks
 from pilerl.evaluation.control_signals import (
-    OPERATOR_PHASES,
     SCOOP_PHASES,
     compare_controls,
     plot_control_signals,
@@ -19,11 +18,13 @@ from pilerl.evaluation.control_signals import (
     scoop_phases,
 )
 from pilerl.policies import INPUT_MASK_KEY, OUTPUT_MASK_KEY, make_actor
+from pilerl.sim import get_simulator
 from pilerl.training.bc import validation_loss
 
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
 UNITS = {name: "rad" if name.endswith("angle") else "MPa" for name in SENSORS}
 CONTROLS = ["boom", "bucket", "throttle"]
+OPERATOR_PHASES = get_simulator("pile_loader").expert_phases()  # what ``phase`` indexes
 RATE_HZ = 20.0
 MIN_FIGURE_BYTES = 10_000  # a blank 110-dpi PNG of these sizes is far smaller than a plot
 STATS = {
