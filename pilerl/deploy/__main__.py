@@ -106,7 +106,11 @@ def main(argv: list[str] | None = None) -> int:
                 speedup=args.speedup,
             )
             outcomes = fault_table(
-                args.controller, env_kwargs=_env_kwargs(args), runtime=settings, cases=args.cases
+                args.controller,
+                env_kwargs=_env_kwargs(args),
+                runtime=settings,
+                cases=args.cases,
+                simulator=ENV.simulator,
             )
             print(format_table(outcomes))
             return 1 if any(o["crashed"] for o in outcomes) else 0

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pilerl.sim import get_simulator, make_gym_env
+from pilerl.sim import DEFAULT_SIMULATOR, get_simulator, make_gym_env
 
 from .link import LinkFault, MachineLink
 from .packets import ControllerState, SensorFlag, SensorLayout
@@ -42,7 +42,7 @@ class BridgeSettings:
         rearm_at_step: send a re-arm request at this step of each episode (fault tests).
     """
 
-    simulator: str = "pile_loader"
+    simulator: str = DEFAULT_SIMULATOR
     env_kwargs: dict = field(default_factory=dict)
     seeds: tuple[int, ...] = (0,)
     speedup: float = 1.0

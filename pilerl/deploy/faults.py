@@ -19,6 +19,8 @@ import math
 import time
 from dataclasses import dataclass
 
+from pilerl.sim import DEFAULT_SIMULATOR
+
 from .bridge import BridgeSettings
 from .controllers import DeployedController, load_controller
 from .hil import run_hil, simulator_layout
@@ -92,9 +94,11 @@ def run_scenario(
     env_kwargs: dict,
     seed: int,
     runtime: RuntimeSettings,
+    simulator: str = DEFAULT_SIMULATOR,
 ) -> dict:
-    """Run one scenario; returns its outcome (see the module docstring)."""
-    layout, control_hz = simulator_layout("pile_loader", env_kwargs)
+    """Run one scenario against ``simulator`` (its arguments ``env_kwargs``); returns its
+    outcome (see the module docstring)."""
+    layout, control_hz = simulator_layout(simulator, env_kwargs)
     controller = load_controller(controller_path, sensors=layout.names, control_hz=control_hz)
     if scenario.slow_at_call is not None:
         # + the runtime's warm-up calls, which come first
@@ -104,6 +108,7 @@ def run_scenario(
             controller, scenario.slow_at_call + WARM_UP_CALLS, 2 * runtime.inference_budget_s
         )
     bridge = BridgeSettings(
+        simulator=simulator,
         env_kwargs=env_kwargs,
         seeds=(seed,),
         speedup=runtime.speedup,
@@ -163,13 +168,22 @@ def fault_table(
     runtime: RuntimeSettings,
     cases: int = 1,
     only: list[str] | None = None,
+    simulator: str = DEFAULT_SIMULATOR,
 ) -> list[dict]:
-    """Every scenario ``cases`` times (seeds 0..cases-1); one outcome per run."""
+    """Every scenario ``cases`` times (seeds 0..cases-1) against ``simulator``; one outcome
+    per run."""
     chosen = scenarios(runtime.max_sensor_age_s, 1 / runtime.control_hz)
     if only:
         chosen = [s for s in chosen if s.name in only]
     return [
-        run_scenario(s, controller_path, env_kwargs=env_kwargs, seed=seed, runtime=runtime)
+        run_scenario(
+            s,
+            controller_path,
+            env_kwargs=env_kwargs,
+            seed=seed,
+            runtime=runtime,
+            simulator=simulator,
+        )
         for s in chosen
         for seed in range(cases)
     ]
