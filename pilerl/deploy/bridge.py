@@ -59,6 +59,17 @@ class BridgeSettings:
             raise ValueError(f"BridgeSettings.max_steps: must be >= 1, got {self.max_steps}")
 
 
+def _declared_info(plugin, start: dict, final: dict) -> dict:
+    """The simulator's declared ``episode_info`` entries at the episode's end (those it
+    reports only at reset, such as the pile loader's start pose, from reset; NaN where
+    never reported; flags as bools)."""
+    values = {}
+    for key in plugin.episode_info:
+        value = float(final.get(key, start.get(key, math.nan)))
+        values[key] = bool(value) if key in plugin.info_flags() else value
+    return values
+
+
 def _readings(obs: dict, layout: SensorLayout) -> np.ndarray:
     return np.array([float(np.asarray(obs[n]).reshape(-1)[0]) for n in layout.names], np.float32)
 
@@ -119,13 +130,13 @@ def _episode(env, layout: SensorLayout, link: MachineLink, settings: BridgeSetti
     link.receive_until(next_send)
     link.send_sensors(step, _readings(obs, layout), end)
     commands = link.received[first_command:]
+    plugin = get_simulator(settings.simulator)
+    success = bool(info[plugin.success_key])
     return {
         "seed": seed,
-        "start_distance_m": float(start.get("start_distance_m", math.nan)),
-        "fill_fraction": float(info["fill_fraction"]),
-        "success": bool(info["success"]),
-        "scoop_finished": bool(info.get("scoop_finished", False)),
-        "elapsed_s": float(info["elapsed_s"]),
+        "fill_fraction": float(info[plugin.fill_key]) if plugin.fill_key else float(success),
+        "success": success,
+        **_declared_info(plugin, start, info),
         "steps": step,
         "late_commands": late,
         "wall_s": time.monotonic() - started,
