@@ -4,7 +4,8 @@ One loop over ``available_simulators()`` (the pile loader and the toy cart here;
 third-party plugin installed beside them is tested the same way): its declared words
 match its env, its TorchRL specs check, a seed replays an episode, and the library
 records demonstrations with its scripted expert, clones them, evaluates in closed loop
-and fine-tunes by RL on a tiny budget, all by the simulator's name.
+and fine-tunes by RL on a tiny budget, all by the simulator's name; records and
+summaries carry its declared failure modes.
 """
 
 from __future__ import annotations
@@ -130,18 +131,23 @@ def test_record_clone_evaluate_and_finetune_by_name(name, tmp_path):
     for records in (scripted, cloned):
         assert [r["condition"] for r in records] == list(conditions)
         assert all(r["fill_fraction"] >= 0.0 and math.isfinite(r["return"]) for r in records)
-    summary = summarize(scripted, groups=plugin.condition_groups)
+    summary = summarize(scripted, groups=plugin.condition_groups, simulator=name)
     assert set(conditions) <= set(summary)
-    # --- a tiny PPO fine-tune over every condition, rewarded by every declared part
+    # --- the simulator's own failure modes and columns, in its words
+    for row in summary.values():
+        assert list(row["failure_modes"]) == list(plugin.failure_modes)
+    for record in (*scripted, *cloned):
+        assert record["failure_mode"] in ("success", *plugin.failure_modes)
+        assert (record["failure_mode"] == "success") == record["success"]
+    # --- a tiny PPO fine-tune on the declared default curriculum (an empty mixture),
+    # rewarded by every declared part
     config = FinetuneConfig(
         checkpoint=str(checkpoint),
         env=env,
         algorithm=PPOConfig(
             frames_per_batch=32, epochs=1, minibatch_size=16, critic_warmup_batches=1
         ),
-        curriculum=CurriculumConfig(
-            stages=[CurriculumStage(frames=64, conditions={ALL_CONDITIONS: 1.0})]
-        ),
+        curriculum=CurriculumConfig(stages=[CurriculumStage(frames=64, conditions={})]),
         collection=CollectionConfig(envs_per_worker=2),
         evaluation=EvaluationConfig(
             groups={"first": [first]}, every_frames=0, episodes=1, final_episodes=1

@@ -85,6 +85,9 @@ def test_the_documented_plugin_runs_in_every_recipe_by_name(installed_plugin):
     evaluated = sorted(installed_plugin.glob("outputs/evaluate/*/summary.json"))
     summary = json.loads(evaluated[-1].read_text())
     assert {"mild", "frost"} <= set(summary)  # every declared condition
+    assert all(set(row["failure_modes"]) == {"too_cold", "too_hot"} for row in summary.values())
+    episodes = evaluated[-1].with_name("episodes.csv").read_text().splitlines()
+    assert episodes[0].endswith("final_error_degc,failure_mode")  # the plugin's columns
     finetuned = sorted(installed_plugin.glob("outputs/finetune/*/results.json"))
     results = json.loads(finetuned[-1].read_text())
     assert set(results["before"]) == {"winter", "mild"}  # declared groups + ungrouped
