@@ -81,7 +81,7 @@ def main(config: ScoopConfig, run: Run) -> dict[str, float]:
             videos.append(f"scoop_{condition}.mp4")
 
     # --- report
-    plot_scoop(episodes, f"{out_dir}/scoop_signals.png")
+    plot_scoop(episodes, f"{out_dir}/scoop_signals.png", simulator=config.env.simulator)
     report = write_scoop_report(
         summaries,
         out_dir,
