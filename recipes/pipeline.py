@@ -13,10 +13,9 @@ with ``hydra.run.dir=<that run>`` resumes it (``run.json`` records the settings;
 config in the same directory is refused). ``evaluation.videos=auto`` renders when this
 machine can, and otherwise warns once and writes the report without videos.
 
-This is the paper's experiment, so it speaks the pile loader's words on purpose (summer
-demonstrations cued by drive pressure, winter_c ones by telescope pressure, the winter
-group, the paper's report); the single-job recipes (record, build_dataset, train_bc,
-evaluate, finetune, scoop) take any simulator.
+The paper's experiment: it speaks the pile loader's words on purpose (summer and winter_c
+demonstrations, their cue sensors, the winter group); the single-job recipes take any
+simulator.
 """
 
 from __future__ import annotations
