@@ -28,16 +28,16 @@ register_configs()
 GROWABLE = ("curriculum.stages.*.frames", "time_budget_minutes")
 
 
-def winter_success(metrics: dict) -> float:
-    """The winter-or-first group's success rate after fine-tuning (``best.pt``)."""
+def first_group_success(metrics: dict) -> float:
+    """The first evaluation group's success rate after fine-tuning (``best.pt``): by
+    default the simulator's first declared group (the pile loader's winter A-D)."""
     rates = {k: v for k, v in metrics.items() if k.startswith("after_best_")}
-    rates = {k: v for k, v in rates.items() if k.endswith("_success_rate")}
-    return float(rates.get("after_best_winter_success_rate", next(iter(rates.values()))))
+    return float(next(v for k, v in rates.items() if k.endswith("_success_rate")))
 
 
-@recipe("finetune", objective=winter_success)
+@recipe("finetune", objective=first_group_success)
 def main(config: FinetuneConfig, run: Run) -> dict[str, float]:
-    """Returns the winter-or-first group's success rate after fine-tuning (best.pt)."""
+    """Returns the first evaluation group's success rate after fine-tuning (best.pt)."""
     config.checkpoint = str(resolve_checkpoint(config.checkpoint))
     warn_if_other_control_rate(config.checkpoint, config.env.control_hz)
     config.evaluation.video = resolve_videos(
