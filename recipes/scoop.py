@@ -76,7 +76,9 @@ def main(config: ScoopConfig, run: Run) -> dict[str, float]:
         # --- artefacts a person can look at
         write_trace_csv(episode, f"{out_dir}/trace_{condition}.csv", simulator=config.env.simulator)
         if video:
-            frames = annotate_frames(episode, condition=condition, sensor_ranges=ranges)
+            frames = annotate_frames(
+                episode, condition=condition, sensor_ranges=ranges, simulator=config.env.simulator
+            )
             write_mp4(frames, f"{out_dir}/scoop_{condition}.mp4", fps=episode.frame_hz)
             videos.append(f"scoop_{condition}.mp4")
 

@@ -158,7 +158,9 @@ def render_rollout(
     fill_key = get_simulator(plan.simulator).fill_key or "fill_fraction"
     if abs(float(episode.final_info.get(fill_key, math.nan)) - record["fill_fraction"]) > 1e-6:
         log.warning("%s: the re-rendered episode differs from the evaluated one", path)
-    frames = annotate_frames(episode, condition=record["condition"], sensor_ranges=ranges)
+    frames = annotate_frames(
+        episode, condition=record["condition"], sensor_ranges=ranges, simulator=plan.simulator
+    )
     return write_mp4(frames, path, fps=episode.frame_hz)
 
 

@@ -24,6 +24,9 @@ from pilerl.sim.rollout import (
 )
 from pilerl.sim.torchrl_env import SimulatorBatchEnv
 
+# per-step ``info`` traces kept for trace CSVs and plots where a simulator reports them
+# (the pile loader's bucket state); the outcome and start pose come from the simulator's
+# declared success, fill and ``episode_info``
 INFO_TRACES = (
     "fill_fraction",
     "cutting_depth_m",
@@ -31,16 +34,6 @@ INFO_TRACES = (
     "bucket_pitch_rad",
     "bucket_hinge_height_m",
     "spilled_kg",
-)
-# ``info`` entries an ``Episode`` keeps: the traces, the outcome and the start pose
-EPISODE_INFO = (
-    *INFO_TRACES,
-    "success",
-    "scoop_finished",
-    "tipped",
-    "elapsed_s",
-    "start_distance_m",
-    "approach_angle_rad",
 )
 
 
@@ -56,8 +49,8 @@ class Episode:
         traces: selected ``info`` values per step (``INFO_TRACES`` that the env reports).
         info: every carried ``info`` entry at reset, then after each step [T + 1] (NaN
             where not reported): what the simulator's episode rules read.
-        final_info: the last step's ``info``; start_info: ``info`` at reset (the
-            ``EPISODE_INFO`` entries the simulator reports).
+        final_info: the last step's ``info``; start_info: ``info`` at reset (the carried
+            entries the simulator reports: ``INFO_TRACES`` and its declared ones).
         start_sensors: sensor readings at reset (before the first action).
         terminated, truncated: how the episode ended.
         phases: the controller's phase name at each step, if it reported one.
@@ -84,11 +77,11 @@ class Episode:
 def make_episode_env(
     simulator: str, env_kwargs: Mapping[str, object], *, info_keys: tuple[str, ...] = ()
 ) -> SimulatorBatchEnv:
-    """One simulator for ``run_episode``, carrying ``EPISODE_INFO``, the simulator's declared
+    """One simulator for ``run_episode``, carrying ``INFO_TRACES``, the simulator's declared
     success, fill and ``episode_info`` entries, and ``info_keys``."""
     plugin = get_simulator(simulator)
     declared = (plugin.success_key, *((plugin.fill_key,) if plugin.fill_key else ()))
-    keys = tuple(dict.fromkeys((*EPISODE_INFO, *declared, *plugin.episode_info, *info_keys)))
+    keys = tuple(dict.fromkeys((*INFO_TRACES, *declared, *plugin.episode_info, *info_keys)))
     return make_rollout_env(simulator, env_kwargs, num_envs=1, info_keys=keys)
 
 
@@ -132,7 +125,7 @@ def episode_of(
     """Episode ``index`` of a rollout as NumPy traces (phase names from ``phases``)."""
     rows = run.episode(index)
     after = rows.get("next")
-    info = {k: run.info(index, k) for k in EPISODE_INFO if k in run.info_keys}
+    info = {k: run.info(index, k) for k in run.info_keys}
     start_info = _reported({k: float(v[0]) for k, v in info.items()})
     final_info = _reported({k: float(v[-1]) for k, v in info.items()})
     steps = len(rows)
@@ -153,7 +146,7 @@ def episode_of(
         phases=phase_names,
         frames=run.frames[index] if run.frames else [],
         frame_hz=frame_hz,
-        info={k: run.info(index, k) for k in run.info_keys},
+        info=info,
     )
 
 

@@ -9,6 +9,7 @@ import imageio.v2 as imageio
 import numpy as np
 
 from pilerl.io import atomic_path
+from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
 
 
 def write_mp4(frames: Sequence[np.ndarray], path: str | Path, *, fps: float) -> Path:
@@ -34,6 +35,7 @@ def annotate_frames(
     condition: str,
     sensor_ranges: dict[str, tuple[float, float]],
     success_fill: float = 0.5,
+    simulator: str = DEFAULT_SIMULATOR,
 ) -> list[np.ndarray]:
     """The episode's frames with an overlay: condition, time, fill, outcome, sensor gauges.
 
@@ -41,6 +43,7 @@ def annotate_frames(
     overlay reads the sensors and fill of that step. Each sensor is a small horizontal
     gauge scaled to its declared range (``sensor_ranges``: name -> (low, high)), so that
     winter (low drive pressure, spinning wheels) looks different from summer at a glance.
+    Fill and outcome are ``simulator``'s declared fill and success keys.
     """
     from PIL import Image, ImageDraw, ImageFont
 
@@ -48,8 +51,10 @@ def annotate_frames(
         return []
     dt = float(episode.time_s[0]) if len(episode.time_s) else 0.0
     stride = max(1, round(1.0 / (episode.frame_hz * dt))) if dt and episode.frame_hz else 1
-    fills = episode.traces.get("fill_fraction")
-    success = bool(episode.final_info.get("success", False))
+    plugin = get_simulator(simulator)
+    fill_key = plugin.fill_key
+    fills = episode.info[fill_key][1:] if fill_key and fill_key in episode.info else None
+    success = bool(episode.final_info.get(plugin.success_key, False))
     height = episode.frames[0].shape[0]
     font = ImageFont.load_default(size=max(8, height // 30))
     line = font.size + 2
