@@ -17,7 +17,7 @@ from pilerl.evaluation.evaluator import EvaluationPlan, evaluate, summarize
 from pilerl.evaluation.settings import ScoopConfig
 from pilerl.operators import OperatorModule
 from pilerl.rl.config import resolve_simulator_words
-from pilerl.sim import SimulatorPlugin, get_simulator
+from pilerl.sim import SimulatorPlugin, get_simulator, registry
 from pilerl.sim.settings import EnvConfig
 
 CONF = Path(__file__).resolve().parents[2] / "conf"
@@ -150,3 +150,28 @@ def test_scoop_shows_the_simulators_example_conditions_by_default():
     assert toy.conditions == ["nominal"]
     with pytest.raises(ValueError, match="conditions"):
         ScoopConfig(env=EnvConfig(), conditions=[], output_dir="/x")
+
+
+def test_a_simulator_without_episode_rules_is_evaluated_with_the_defaults(monkeypatch):
+    """The toy cart declared bare (no rule, no failure modes): its records carry the last
+    value of each declared ``info`` entry, and every failure is ``failed``."""
+    toy = get_simulator("toy_cart")
+    bare = SimulatorPlugin.from_declaration(
+        {
+            "name": "bare_cart",
+            "gym_id": toy.gym_id,  # the toy cart's env, already registered
+            "entry_point": toy.entry_point,
+            "sensors": {n: vars(s) for n, s in toy.sensors.items()},
+            "controls": list(toy.controls),
+            "conditions": dict(toy.conditions),
+            "options": toy.options,
+            "episode_info": {"error_m": "m"},
+        },
+        where="test",
+    )
+    monkeypatch.setitem(registry._plugins(), "bare_cart", bare)
+    plan = EvaluationPlan("bare_cart", {}, ("nominal",), episodes=2, seed=0)
+    records = evaluate(ConstantPush(0.0, "idle"), plan, workers=1, progress=False)
+    assert [r["failure_mode"] for r in records] == ["failed", "failed"]
+    assert all(r["error_m"] > 0.05 and not r["success"] for r in records)
+    assert summarize(records, simulator="bare_cart")["nominal"]["failure_modes"] == {"failed": 2}
