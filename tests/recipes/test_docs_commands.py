@@ -34,6 +34,7 @@ TINY = {
     "record.py": ["n_episodes=2", "record_hz=20", "workers=1"],
     "build_dataset.py": [],
     "train_bc.py": [
+        "seed=0",  # one training seed: the paper's overlays sweep seed=0,1,2
         "gradient_steps=4",
         "epochs=1",
         "evaluation.episodes=1",  # left out for ensembles, which evaluate nothing
