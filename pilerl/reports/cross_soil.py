@@ -44,14 +44,19 @@ def controller_of(checkpoint: str | None, name: str | None) -> tuple[Controller,
     """The controller a checkpoint holds and its training seed.
 
     A checkpoint in a ``train_bc`` job directory (or that directory): its controller,
-    sensor set, dataset and seed. Otherwise the evaluation's ``name`` (or the checkpoint's
-    directory name; ``scripted`` without a checkpoint) and seed 0.
+    sensor set, dataset and seed. Otherwise (a fine-tuned actor, a file elsewhere) the
+    evaluation's ``name`` or the checkpoint's directory name, and seed 0; ``scripted``
+    without a checkpoint.
     """
     if checkpoint is None:
         return (name or "scripted", "", ""), 0
     path = Path(checkpoint)
     run_dir = path if path.is_dir() else path.parent
-    if (run_dir / HYDRA_DIR).is_dir():
+    try:
+        config = read_run_settings(run_dir) or read_config(run_dir)
+    except ValueError:  # no run record nor Hydra config: a checkpoint file on its own
+        config = {}
+    if "train_data" in config:  # a train_bc job
         setup: JobSetup = job_setup(run_dir)
         return (setup.controller, setup.sensors, setup.dataset), setup.seed
     return (name or run_dir.name, "", ""), 0

@@ -313,3 +313,16 @@ def test_a_real_sweep_over_seeds_pools_them_on_paired_starts(datasets, tmp_path)
     assert first.shape != second.shape or not bool((first == second).all())
     markdown, _ = build_report(out_dir=tmp_path / "report", exp1=sweep)
     assert "| RF | θ1, θ2, p_d | D_I | 2 |" in markdown.read_text()  # pooled over 2 seeds
+
+
+def test_a_checkpoint_outside_a_train_bc_job_is_named_by_its_directory(tmp_path):
+    from pilerl.reports.cross_soil import controller_of
+
+    finetuned = tmp_path / "finetune" / "dannet_rlpd"
+    (finetuned / ".hydra").mkdir(parents=True)
+    (finetuned / ".hydra" / "config.yaml").write_text(yaml.safe_dump({"algorithm": "ppo"}))
+    assert controller_of(str(finetuned / "best.pt"), None) == (("dannet_rlpd", "", ""), 0)
+    assert controller_of(str(tmp_path / "x.pt"), "mine") == (("mine", "", ""), 0)
+    assert controller_of(None, None) == (("scripted", "", ""), 0)
+    train = seeded_job(tmp_path / "train", 0, policy="annet", seed=2, wins={"summer": [True]})
+    assert controller_of(str(train / "best.pt"), None) == (("annet", "s_pt", "d_ii"), 2)
