@@ -3,14 +3,18 @@
     python -m pilerl.reports.paper \\
         --exp1 multirun/exp1_summer_to_winter --exp2 multirun/exp2_data_and_pt \\
         --exp3 multirun/exp3_attention --exp4 multirun/exp4_offline_validation \\
+        --cross-soil multirun/cross_soil \\
         --figure-actor DANNet=<job>/best.pt --figure-demos data/demos/winter_c_validation \\
         --out docs/results/paper
 
 Every closed-loop cell puts the paper's success rate beside the simulated one (successes /
-episodes and the 95% Wilson interval) and says whether the paper's number lies inside the
-interval. Each experiment's claims from the paper are then checked on the simulated numbers
-and stated as holding or not. Any experiment may be left out; jobs that have not finished
-are listed, not guessed.
+episodes pooled over the training seeds, the 95% Wilson interval and the seed spread) and
+says whether the paper's number lies inside the interval. Every trained controller gets a
+row over every tested condition. Each experiment's claims from the paper are then checked
+on the simulated numbers by seed-aware tests (``comparisons``: a paired test over seeds and
+starts for "A beats B") and stated as holding or not. ``--cross-soil`` adds the held-out
+conditions and the two soil models' rank agreement (``cross_soil``). Any experiment may be
+left out; jobs that have not finished are listed, not guessed.
 
 The paper's tables and claims are data in ``paper_numbers``; this module checks the claims
 (``check_claim``) and writes the report's sections.
