@@ -8,9 +8,13 @@ gravel on a dry site); ``winter_a`` .. ``winter_d`` follow the paper's Fig. 1 te
 - C: icy surface, snow covering the surface and the pile
 - D: cold winter, gravel partly replaced by snow clearing (snow as the material)
 
+``HELD_OUT`` holds conditions the paper could not test (``wet_clay``, ``frozen_crust``,
+``dry_sand``): a condition-shift suite that no demonstration or curriculum uses by
+default (the plugin declares them as its ``held_out`` group, kept out of ``all``).
+
 Numbers are typical textbook values, not measurements of the paper's site; the sources are
-listed in docs/machine_model.md. Every field is validated, so a typo'd or impossible value
-fails at construction with the field's name.
+listed in docs/machine_model.md (held-out presets: docs/env_card.md). Every field is
+validated, so a typo'd or impossible value fails at construction with the field's name.
 """
 
 from __future__ import annotations
@@ -241,11 +245,48 @@ CONDITIONS: dict[str, Condition] = {
 }
 
 
+# Held-out conditions: beyond the paper's test days, for a condition-shift test. Values
+# and their sources: docs/env_card.md ("Held-out conditions").
+HELD_OUT: dict[str, Condition] = {
+    "wet_clay": Condition(
+        name="wet_clay",
+        description="Held out: wet heavy clay on soft, rutted ground; cool oil.",
+        material=Material("wet sandy clay", 1850.0, 22.0, 12000.0, 14.0, 0.001),
+        ground=Ground(tyre_friction=0.40, rolling_resistance=0.12),
+        hydraulics=Hydraulics(
+            oil_temperature_c=10.0, valve_lag_s=0.12, pump_lag_s=0.55, speed_scale=0.95
+        ),
+    ),
+    "frozen_crust": Condition(
+        name="frozen_crust",
+        description="Held out: a frozen crust over loose gravel, on frozen ground; cold oil.",
+        # one soil layer: the crust is an effective cohesion over the cut depth
+        material=Material("loose gravel under a frozen crust", 1600.0, 36.0, 15000.0, 20.0, 0.02),
+        ground=Ground(tyre_friction=0.25, rolling_resistance=0.02),
+        hydraulics=Hydraulics(
+            oil_temperature_c=-10.0, valve_lag_s=0.28, pump_lag_s=0.85, speed_scale=0.78
+        ),
+    ),
+    "dry_sand": Condition(
+        name="dry_sand",
+        description="Held out: dry fine sand on loose sand; hot oil.",
+        material=Material("dry fine sand", 1450.0, 32.0, 0.0, 20.0, 0.001),
+        ground=Ground(tyre_friction=0.30, rolling_resistance=0.10),
+        hydraulics=Hydraulics(
+            oil_temperature_c=65.0, valve_lag_s=0.07, pump_lag_s=0.45, speed_scale=1.0
+        ),
+    ),
+}
+
+PRESETS: dict[str, Condition] = {**CONDITIONS, **HELD_OUT}  # every preset a name can pick
+
+
 def get_condition(name: str) -> Condition:
-    """Look up a condition preset by name; unknown names list the known ones."""
+    """Look up a condition preset (the paper's or a held-out one) by name; unknown names
+    list the known ones."""
     try:
-        return CONDITIONS[name]
+        return PRESETS[name]
     except KeyError:
         raise ValueError(
-            f"unknown condition {name!r}; known conditions: {sorted(CONDITIONS)}"
+            f"unknown condition {name!r}; known conditions: {sorted(PRESETS)}"
         ) from None

@@ -7,7 +7,7 @@ importing this one stays cheap (no MuJoCo) and needs nothing from pilerl.
 
 from __future__ import annotations
 
-from .conditions import CONDITIONS
+from .conditions import CONDITIONS, HELD_OUT
 from .failures import EPISODE_INFO, FAILURE_MODES
 from .sensors import CONTROL_NAMES, SENSORS
 from .task import RewardWeights, reward_parts
@@ -32,8 +32,8 @@ PLUGIN = {
     "description": "MuJoCo wheel loader (Avant 635 class), heightfield or particle pile",
     "sensors": {s.name: {"unit": s.unit, "low": s.low, "high": s.high} for s in SENSORS},
     "controls": list(CONTROL_NAMES),
-    "conditions": {name: c.description for name, c in CONDITIONS.items()},
-    "condition_groups": {"winter": list(WINTER)},
+    "conditions": {name: c.description for name, c in (CONDITIONS | HELD_OUT).items()},
+    "condition_groups": {"winter": list(WINTER), "held_out": list(HELD_OUT)},
     "reward_parts": list(
         reward_parts(
             RewardWeights(),

@@ -3,14 +3,18 @@
     python -m pilerl.reports.paper \\
         --exp1 multirun/exp1_summer_to_winter --exp2 multirun/exp2_data_and_pt \\
         --exp3 multirun/exp3_attention --exp4 multirun/exp4_offline_validation \\
+        --cross-soil multirun/cross_soil \\
         --figure-actor DANNet=<job>/best.pt --figure-demos data/demos/winter_c_validation \\
         --out docs/results/paper
 
 Every closed-loop cell puts the paper's success rate beside the simulated one (successes /
-episodes and the 95% Wilson interval) and says whether the paper's number lies inside the
-interval. Each experiment's claims from the paper are then checked on the simulated numbers
-and stated as holding or not. Any experiment may be left out; jobs that have not finished
-are listed, not guessed.
+episodes pooled over the training seeds, the 95% Wilson interval and the seed spread) and
+says whether the paper's number lies inside the interval. Every trained controller gets a
+row over every tested condition. Each experiment's claims from the paper are then checked
+on the simulated numbers by seed-aware tests (``comparisons``: a paired test over seeds and
+starts for "A beats B") and stated as holding or not. ``--cross-soil`` adds the held-out
+conditions and the two soil models' rank agreement (``cross_soil``). Any experiment may be
+left out; jobs that have not finished are listed, not guessed.
 
 The paper's tables and claims are data in ``paper_numbers``; this module checks the claims
 (``check_claim``) and writes the report's sections.
@@ -26,8 +30,10 @@ from pathlib import Path
 import numpy as np
 
 from pilerl.figures import legend_outside, plt, save_figure
+from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
 
 from . import paper_numbers
+from .comparisons import compare, seed_spread_text, threshold
 from .document import Report
 from .paper_numbers import Claim, Key
 from .results import Cell, closed_loop_cells, offline_validation_curves
@@ -67,8 +73,14 @@ def cell_verdict(paper_percent: float, cell: Cell) -> str:
     return "sim higher" if cell.rate > paper_percent / 100 else "sim lower"
 
 
+def same_side_of_half(paper_percent: float, cell: Cell) -> bool:
+    """Whether the paper's rate and the simulated one are on the same side of 50%."""
+    return (paper_percent >= 50) == (cell.rate >= 0.5)
+
+
 def comparison_rows(paper: dict[Key, int], cells: dict[Key, Cell]) -> list[list[str]]:
-    """One row per paper cell: paper, simulated rate, n, interval, verdict."""
+    """One row per paper cell: paper, simulated rate, n, interval, verdict, failures and
+    the training seeds with the spread of their own rates."""
     rows = []
     for key, paper_percent in paper.items():
         controller, sensors, dataset, test = key
@@ -81,7 +93,7 @@ def comparison_rows(paper: dict[Key, int], cells: dict[Key, Cell]) -> list[list[
         ]
         cell = cells.get(key)
         if cell is None:
-            rows.append(row + ["not run", "", "", "", ""])
+            rows.append(row + ["not run", "", "", "", "", "", ""])
             continue
         low, high = cell.interval
         rows.append(
@@ -92,6 +104,8 @@ def comparison_rows(paper: dict[Key, int], cells: dict[Key, Cell]) -> list[list[
                 f"{_percent(low)}–{_percent(high)}",
                 cell_verdict(paper_percent, cell),
                 _failures(cell),
+                "yes" if same_side_of_half(paper_percent, cell) else "no",
+                seed_spread_text(cell),
             ]
         )
     return rows
@@ -123,6 +137,8 @@ COMPARISON_HEADER = [
     "95% CI",
     "paper in CI?",
     "failures",
+    "same side of 50%?",
+    "seed spread (min–max)",
 ]
 
 
@@ -149,21 +165,30 @@ def plot_comparison(paper: dict[Key, int], cells: dict[Key, Cell], path: Path, t
 # --- the paper's claims, each checked on the simulated cells -------------------------------
 
 
+def _rate_text(key: Key, cell: Cell) -> str:
+    low, high = cell.interval
+    return (
+        f"{_label(key)} {_percent(cell.rate)} (CI {_percent(low)}–{_percent(high)}, "
+        f"seeds {seed_spread_text(cell)})"
+    )
+
+
 def _better(cells: dict[Key, Cell], a: Key, b: Key) -> tuple[bool | None, str]:
-    """Is a's success rate above b's? Evidence names both and whether intervals overlap."""
+    """Does a beat b? Holds when the seed-aware test (``comparisons.compare``) says so."""
     if a not in cells or b not in cells:
         return None, "not run"
-    ca, cb = cells[a], cells[b]
-    separated = ca.interval[0] > cb.interval[1] or cb.interval[0] > ca.interval[1]
-    evidence = (
-        f"{_label(a)} {_percent(ca.rate)} vs {_label(b)} {_percent(cb.rate)}"
-        f" (intervals {'do not overlap' if separated else 'overlap'})"
-    )
-    return ca.rate > cb.rate, evidence
+    test = compare(cells[a], cells[b])
+    evidence = f"{_rate_text(a, cells[a])} vs {_rate_text(b, cells[b])}: {test.describe()}"
+    return test.significant, evidence
 
 
 def check_claim(claim: Claim, cells: dict[Key, Cell]) -> list[tuple[bool | None, str]]:
-    """The claim checked on each of its cells or pairs: (holds?, evidence); None: not run."""
+    """The claim checked on each of its cells or pairs: (holds?, evidence); None: not run.
+
+    A pair holds when A beats B in the paired test over seeds and starts (p < 0.05); a
+    cell holds when its 95% interval and every seed's rate are on the claimed side of the
+    threshold (``comparisons``).
+    """
     if claim.higher:
         return [_better(cells, a, b) for a, b in claim.higher]
     results = []
@@ -171,9 +196,19 @@ def check_claim(claim: Claim, cells: dict[Key, Cell]) -> list[tuple[bool | None,
         if key not in cells:
             results.append((None, "not run"))
             continue
-        rate = cells[key].rate
-        holds = rate < claim.below if claim.below is not None else rate >= claim.at_least
-        results.append((holds, _label(key) + " " + _percent(rate)))
+        check = threshold(cells[key], below=claim.below, at_least=claim.at_least)
+        side = (
+            f"below {_percent(claim.below)}"
+            if claim.below is not None
+            else (f"at least {_percent(claim.at_least)}")
+        )
+        reasons = []
+        if not check.interval_side:
+            reasons.append(f"interval not {side}")
+        if check.seeds_against:
+            reasons.append(f"{check.seeds_against} seed(s) not {side}")
+        note = "; ".join(reasons) if reasons else f"interval and every seed {side}"
+        results.append((check.holds, f"{_rate_text(key, cells[key])}: {note}"))
     return results
 
 
@@ -195,6 +230,49 @@ def claim_rows(claims: Sequence[Claim], cells: dict[Key, Cell]) -> list[list[str
         evidence = "; ".join(text for _, text in results)
         rows.append([claim.statement, verdict([ok for ok, _ in results]), evidence])
     return rows
+
+
+# --- every controller in every tested condition ------------------------------------------
+
+
+def test_order(tests: set[str], simulator: str = DEFAULT_SIMULATOR) -> list[str]:
+    """The tests in the simulator's order: its conditions as declared, then its groups."""
+    plugin = get_simulator(simulator)
+    ordered = [c for c in plugin.conditions if c in tests]
+    ordered += [g for g in plugin.condition_groups if g in tests]
+    return ordered + sorted(tests - set(ordered))
+
+
+def rate_with_spread(cell: Cell) -> str:
+    """``"47% [20–70%]"``: the pooled rate and the per-seed range (one seed: no range)."""
+    spread = cell.seed_spread
+    if spread is None or len(cell.seed_rates) < 2:
+        return _percent(cell.rate)
+    return f"{_percent(cell.rate)} [{_percent(spread[0])}–{_percent(spread[1])}]"
+
+
+def condition_rows(
+    cells: dict[Key, Cell], simulator: str = DEFAULT_SIMULATOR
+) -> tuple[list[str], list[list[str]]]:
+    """One row per trained controller (controller, inputs, data), one column per tested
+    condition and pooled group (summer, each winter day, each held-out condition, ...)."""
+    controllers = sorted({key[:3] for key in cells})
+    tests = test_order({key[3] for key in cells}, simulator)
+    header = ["controller", "inputs", "data", "seeds", *tests]
+    rows = []
+    for controller, sensors, dataset in controllers:
+        seeds = max(c.seeds for k, c in cells.items() if k[:3] == (controller, sensors, dataset))
+        row = [
+            CONTROLLER_LABELS.get(controller, controller),
+            SENSOR_LABELS.get(sensors, sensors),
+            DATASET_LABELS.get(dataset, dataset),
+            str(seeds),
+        ]
+        for test in tests:
+            cell = cells.get((controller, sensors, dataset, test))
+            row.append("–" if cell is None else rate_with_spread(cell))
+        rows.append(row)
+    return header, rows
 
 
 # --- the report ----------------------------------------------------------------------------
@@ -237,6 +315,14 @@ def add_closed_loop_experiment(
             + ", ".join(str(j.path) for j in unfinished)
         )
     report.table(COMPARISON_HEADER, comparison_rows(paper, cells))
+    simulator = (finished[0].config.get("env") or {}).get("simulator") if finished else None
+    header, rows = condition_rows(cells, simulator or DEFAULT_SIMULATOR)
+    if rows:
+        report.paragraph(
+            "Every trained controller in every tested condition: success pooled over the "
+            "training seeds [lowest–highest seed]."
+        )
+        report.table(header, rows)
     if plot_comparison(paper, cells, out_dir / figure, title):
         report.image(figure, f"{title}: simulation (bars, 95% CI) vs the paper (diamonds)")
     report.paragraph("The paper's claims, checked on the simulated numbers:")
@@ -411,6 +497,85 @@ def _controller_name(actor) -> str:
     return actor_policy(actor).config.controller
 
 
+def add_cross_soil(report: Report, sweep_dir: Path) -> None:
+    """Held-out conditions and the cross-soil check, from an evaluate sweep over
+    checkpoints and soils: every controller's row per soil (summer, each winter day, each
+    held-out condition), then Kendall's tau over the controllers and the gap per one."""
+    from .cross_soil import EVERY_CONDITION, GAP_TARGET, TAU_TARGET, soil_agreement, soil_cells
+
+    cells = soil_cells(sweep_dir)
+    report.heading("Held-out conditions and the cross-soil check")
+    soils = sorted(cells.by_soil)
+    report.paragraph(
+        f"Sweep `{sweep_dir}`: {len(cells.finished)} finished evaluation jobs on the soil "
+        f"models {', '.join(soils) or 'none'}; every controller's training seeds pooled "
+        "[lowest–highest seed]."
+    )
+    if cells.unfinished:
+        report.paragraph(
+            "Unfinished jobs (left out): " + ", ".join(str(p) for p in cells.unfinished)
+        )
+    for soil in soils:
+        header, rows = condition_rows(cells.by_soil[soil])
+        report.paragraph(f"Soil model `{soil}`:")
+        report.table(header, rows)
+    if len(soils) < 2:
+        report.paragraph("One soil model only: no cross-soil comparison.")
+        return
+    pair = (
+        (soils[0], soils[1])
+        if "heightfield" not in soils
+        else (
+            "heightfield",
+            next(s for s in soils if s != "heightfield"),
+        )
+    )
+    shared = set.intersection(*({k[3] for k in cells.by_soil[s]} for s in pair))
+    agreements = []
+    for test in [EVERY_CONDITION, *test_order(shared - {EVERY_CONDITION})]:
+        try:
+            agreements.append(soil_agreement(cells, pair, test))
+        except ValueError:
+            continue  # fewer than two controllers on both soils
+    if not agreements:
+        report.paragraph("Fewer than two controllers on both soils: no rank agreement.")
+        return
+    report.paragraph(
+        f"Rank agreement of {pair[0]} and {pair[1]} over the controllers (Kendall's τ-b) and "
+        f"the largest success gap; target τ ≥ {TAU_TARGET} and every gap within "
+        f"{100 * GAP_TARGET:.0f} points."
+    )
+    report.table(
+        ["test", "controllers", "Kendall's τ", "largest gap", "target met?"],
+        [
+            [
+                a.test,
+                len(a.controllers),
+                "undefined (a constant ranking)" if np.isnan(a.tau) else f"{a.tau:.2f}",
+                f"{100 * max(abs(g) for g in a.gaps):.0f} points",
+                "yes" if a.meets_target else "no",
+            ]
+            for a in agreements
+        ],
+    )
+    overall = agreements[0]
+    report.paragraph(f"Success gap per controller over {overall.test} ({pair[0]} − {pair[1]}):")
+    report.table(
+        ["controller", "inputs", "data", pair[0], pair[1], "gap"],
+        [
+            [
+                CONTROLLER_LABELS.get(c[0], c[0]),
+                SENSOR_LABELS.get(c[1], c[1]),
+                DATASET_LABELS.get(c[2], c[2]),
+                _percent(a),
+                _percent(b),
+                f"{100 * (a - b):+.0f} points",
+            ]
+            for c, (a, b) in zip(overall.controllers, overall.rates, strict=True)
+        ],
+    )
+
+
 def at_a_glance(compared: list[tuple[str, dict, dict, list]]) -> Report:
     """Per experiment: how many cells agree, which way the others lean, why scoops failed."""
     glance = Report("")
@@ -418,6 +583,12 @@ def at_a_glance(compared: list[tuple[str, dict, dict, list]]) -> Report:
     rows, modes = [], {}
     for title, paper, cells, claims in compared:
         verdicts = [cell_verdict(paper[key], cells[key]) for key in paper if key in cells]
+        near = [
+            cell_verdict(paper[key], cells[key]) == "agrees"
+            or same_side_of_half(paper[key], cells[key])
+            for key in paper
+            if key in cells
+        ]
         held = [row[1] for row in claim_rows(claims, cells)]
         rows.append(
             [
@@ -427,13 +598,21 @@ def at_a_glance(compared: list[tuple[str, dict, dict, list]]) -> Report:
                 verdicts.count("sim lower"),
                 f"{held.count('holds')} hold, {held.count('holds in part')} in part, "
                 f"{held.count('does not hold')} do not",
+                f"{sum(near)}/{len(near)}",
             ]
         )
         for key in paper:
             for mode, n in cells[key].failure_modes.items() if key in cells else ():
                 modes[mode] = modes.get(mode, 0) + n
     glance.table(
-        ["experiment", "paper inside the CI", "sim higher", "sim lower", "the paper's claims"],
+        [
+            "experiment",
+            "paper inside the CI",
+            "sim higher",
+            "sim lower",
+            "the paper's claims",
+            "inside the CI or same side of 50%",
+        ],
         rows,
     )
     failed = sum(modes.values())
@@ -457,6 +636,7 @@ def build_report(
     exp2: Path | None = None,
     exp3: Path | None = None,
     exp4: Path | None = None,
+    cross_soil: Path | None = None,
     figure_actors: dict[str, Path] | None = None,
     figure_demos: Path | None = None,
     notes: list[str] | None = None,
@@ -493,6 +673,8 @@ def build_report(
         report.blocks[glance_at:glance_at] = at_a_glance(compared).blocks
     if exp4 is not None:
         add_offline_validation(report, Path(exp4), out_dir)
+    if cross_soil is not None:
+        add_cross_soil(report, Path(cross_soil))
     if figure_actors and figure_demos is not None:
         add_controller_figures(report, out_dir, actors=figure_actors, demos=Path(figure_demos))
     return report.write(out_dir)
@@ -502,6 +684,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     for n in (1, 2, 3, 4):
         parser.add_argument(f"--exp{n}", type=Path, help=f"multirun directory of Exp. {n}")
+    parser.add_argument(
+        "--cross-soil",
+        type=Path,
+        help="multirun directory of recipes/evaluate.py over checkpoints and env.soil "
+        "(held-out conditions, Kendall's tau between the soils)",
+    )
     parser.add_argument("--out", type=Path, required=True, help="report directory")
     parser.add_argument("--note", action="append", default=[], help="a line for the notes")
     parser.add_argument(
@@ -526,6 +714,7 @@ def main(argv: list[str] | None = None) -> int:
             exp2=args.exp2,
             exp3=args.exp3,
             exp4=args.exp4,
+            cross_soil=args.cross_soil,
             figure_actors=figure_actors,
             figure_demos=args.figure_demos,
             notes=args.note,

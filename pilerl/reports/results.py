@@ -37,14 +37,28 @@ class JobSetup:
     config: dict
 
 
+Outcome = tuple[int, str, int]  # (training seed, condition, start seed) of one episode
+
+
 @dataclass(frozen=True)
 class Cell:
-    """Closed-loop successes of one (controller, sensors, dataset, test), seeds pooled."""
+    """Closed-loop successes of one (controller, sensors, dataset, test), seeds pooled.
+
+    Attributes:
+        successes, episodes: pooled over the cell's jobs (one training seed each).
+        seeds: number of jobs (training seeds) pooled.
+        failure_modes: failed episodes by mode; empty: not recorded.
+        per_seed: training seed -> (successes, episodes); empty: not recorded.
+        outcomes: (training seed, condition, start seed) -> success of every episode, for
+            tests paired on the seeded starts (``episodes.csv``); empty: not recorded.
+    """
 
     successes: int
     episodes: int
     seeds: int
-    failure_modes: dict[str, int] = field(default_factory=dict)  # empty: not recorded
+    failure_modes: dict[str, int] = field(default_factory=dict)
+    per_seed: dict[int, tuple[int, int]] = field(default_factory=dict)
+    outcomes: dict[Outcome, bool] = field(default_factory=dict)
 
     @property
     def rate(self) -> float:
@@ -53,6 +67,17 @@ class Cell:
     @property
     def interval(self) -> tuple[float, float]:
         return wilson_interval(self.successes, self.episodes)
+
+    @property
+    def seed_rates(self) -> dict[int, float]:
+        """Success rate of each training seed (empty: not recorded)."""
+        return {seed: s / n for seed, (s, n) in sorted(self.per_seed.items()) if n}
+
+    @property
+    def seed_spread(self) -> tuple[float, float] | None:
+        """(lowest, highest) per-seed success rate; ``None``: no per-seed record."""
+        rates = list(self.seed_rates.values())
+        return (min(rates), max(rates)) if rates else None
 
 
 def dataset_name(train_data: str) -> str:
@@ -83,41 +108,116 @@ def job_setup(job_dir: Path) -> JobSetup:
 
 
 def closed_loop_cells(sweep_dir: str | Path) -> tuple[dict[tuple, Cell], list[JobSetup], list]:
-    """Cells keyed ``(controller, sensors, dataset, test)`` with test ``summer`` / ``winter``.
+    """Cells keyed ``(controller, sensors, dataset, test)``, pooled over training seeds.
 
-    ``winter`` is the pooled winter entry when several winter conditions were tested, else
-    the one winter condition. Returns the cells, the finished jobs and the unfinished ones.
+    Tests: ``summer`` and ``winter`` (the paper's: ``winter`` is the pooled winter entry when
+    several winter conditions were tested, else the one winter condition), then every
+    tested condition and pooled group by its own name (``winter_a``, ``held_out``, ...).
+    Returns the cells, the finished jobs and the unfinished ones. Two finished jobs of one
+    cell with the same training seed are refused (a seed is counted once).
     """
-    counts: dict[tuple, list[int]] = defaultdict(lambda: [0, 0, 0])
-    modes: dict[tuple, dict[str, int]] = defaultdict(dict)
+    parts: dict[tuple, list[tuple[JobSetup, TestResult]]] = defaultdict(list)
     finished, unfinished = [], []
     for job_dir in job_directories(sweep_dir):
         setup = job_setup(job_dir)
-        summary_file = job_dir / "evaluation" / "summary.json"
-        if not summary_file.exists():
+        results = job_results(job_dir / "evaluation", setup.config)
+        if results is None:
             unfinished.append(setup)
             continue
-        try:
-            summary = json.loads(summary_file.read_text())
-        except json.JSONDecodeError as error:
-            raise ValueError(f"{summary_file}: corrupt ({error})") from None
         finished.append(setup)
-        simulator = (setup.config.get("env") or {}).get("simulator", DEFAULT_SIMULATOR)
-        members = get_simulator(simulator).condition_groups.get(WINTER, ())
-        winters = [name for name in summary if name in members]
-        tests = {SUMMER: summary.get(SUMMER)}
-        tests[WINTER] = summary.get(WINTER) or (summary[winters[0]] if winters else None)
-        for test, row in tests.items():
-            if row is None:
-                continue
-            key = (setup.controller, setup.sensors, setup.dataset, test)
-            counts[key][0] += int(row["successes"])
-            counts[key][1] += int(row["episodes"])
-            counts[key][2] += 1
-            for mode, n in row.get("failure_modes", {}).items():
-                modes[key][mode] = modes[key].get(mode, 0) + int(n)
-    cells = {key: Cell(s, n, seeds, modes[key]) for key, (s, n, seeds) in counts.items()}
-    return cells, finished, unfinished
+        for test, result in results.items():
+            parts[(setup.controller, setup.sensors, setup.dataset, test)].append((setup, result))
+    return {key: pool_seeds(members) for key, members in parts.items()}, finished, unfinished
+
+
+@dataclass(frozen=True)
+class TestResult:
+    """One job's episodes in one test (a condition or a pooled group)."""
+
+    successes: int
+    episodes: int
+    failure_modes: dict[str, int]
+    outcomes: dict[tuple[str, int], bool]  # (condition, start seed) -> success
+
+
+def job_results(evaluation_dir: Path, config: dict) -> dict[str, TestResult] | None:
+    """Per test, one job's closed-loop results from ``summary.json`` and ``episodes.csv``
+    in ``evaluation_dir`` (``None``: no summary, the job has not finished).
+
+    Tests: every entry of the summary (conditions and pooled groups) and, for the paper,
+    ``winter`` = the one winter condition when only one was tested.
+    """
+    summary_file = evaluation_dir / "summary.json"
+    if not summary_file.exists():
+        return None
+    try:
+        summary = json.loads(summary_file.read_text())
+    except json.JSONDecodeError as error:
+        raise ValueError(f"{summary_file}: corrupt ({error})") from None
+    simulator = (config.get("env") or {}).get("simulator", DEFAULT_SIMULATOR)
+    groups = dict(get_simulator(simulator).condition_groups)
+    members = {name: groups.get(name, (name,)) for name in summary}
+    winters = [name for name in summary if name in groups.get(WINTER, ())]
+    if WINTER not in summary and winters:
+        summary[WINTER] = summary[winters[0]]
+        members[WINTER] = (winters[0],)
+    episodes = read_episode_outcomes(evaluation_dir / "episodes.csv")
+    results = {}
+    for test, row in summary.items():
+        if row is None:
+            continue
+        outcomes = {k: ok for k, ok in episodes.items() if k[0] in members[test]}
+        results[test] = TestResult(
+            successes=int(row["successes"]),
+            episodes=int(row["episodes"]),
+            failure_modes={m: int(n) for m, n in row.get("failure_modes", {}).items()},
+            outcomes=outcomes,
+        )
+    return results
+
+
+def read_episode_outcomes(path: Path) -> dict[tuple[str, int], bool]:
+    """``(condition, start seed) -> success`` of every episode in ``episodes.csv``
+    (empty when the file is absent: such jobs can only be compared unpaired)."""
+    if not path.exists():
+        return {}
+    outcomes = {}
+    with path.open() as file:
+        for line, row in enumerate(csv.DictReader(file), start=2):
+            try:
+                key = (row["condition"], int(row["seed"]))
+                success = {"True": True, "False": False}[row["success"]]
+            except (KeyError, TypeError, ValueError):
+                raise ValueError(
+                    f"{path}:{line}: expected condition, seed and success (True/False)"
+                ) from None
+            if key in outcomes:
+                raise ValueError(f"{path}:{line}: episode {key} appears twice")
+            outcomes[key] = success
+    return outcomes
+
+
+def pool_seeds(members: list[tuple[JobSetup, TestResult]]) -> Cell:
+    """One cell from its jobs (one training seed each); a repeated seed is refused."""
+    per_seed: dict[int, tuple[int, int]] = {}
+    modes: dict[str, int] = {}
+    outcomes: dict[Outcome, bool] = {}
+    for setup, result in members:
+        if setup.seed in per_seed:
+            others = [str(s.path) for s, _ in members if s.seed == setup.seed]
+            raise ValueError(f"training seed {setup.seed} appears in several jobs: {others}")
+        per_seed[setup.seed] = (result.successes, result.episodes)
+        for mode, n in result.failure_modes.items():
+            modes[mode] = modes.get(mode, 0) + n
+        outcomes |= {(setup.seed, c, start): ok for (c, start), ok in result.outcomes.items()}
+    return Cell(
+        successes=sum(s for s, _ in per_seed.values()),
+        episodes=sum(n for _, n in per_seed.values()),
+        seeds=len(per_seed),
+        failure_modes=modes,
+        per_seed=per_seed,
+        outcomes=outcomes,
+    )
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,9 @@ _NAME = re.compile(r"^[A-Za-z_][\w-]*$")
 ALL_CONDITIONS = "all"  # the group every simulator has: all its conditions, in declared order
 SUCCESS = "success"  # the failure mode of an episode that succeeded
 FAILED = "failed"  # the one failure mode of a simulator that declares none
+# A group a simulator may declare: conditions for a condition-shift test, only where named
+# (never in ``all`` nor in the default evaluation groups, so nothing trains on them unasked)
+HELD_OUT_GROUP = "held_out"
 CHECK_PERIOD_S = 0.05  # control period [s] of the expert built only to check its options
 REQUIRED_FIELDS = ("name", "gym_id", "entry_point", "sensors", "controls", "conditions", "options")
 
@@ -73,7 +76,8 @@ class SimulatorPlugin:
             keyword options (with their types and defaults); it includes ``condition``.
             Configs may set exactly these.
         condition_groups: group name -> member conditions (the pile loader: ``winter`` =
-            ``winter_a`` .. ``winter_d``); ``all`` is every condition and is implicit.
+            ``winter_a`` .. ``winter_d``); ``all`` is every condition outside the group
+            ``held_out`` (if declared) and is implicit.
         reward_parts: ``info`` keys of the named parts the reward is the sum of.
         success_key: ``info`` key of the episode's success (a bool at the last step).
         fill_key: ``info`` key of the episode's main score in [0, 1] (the pile loader's
@@ -230,8 +234,10 @@ class SimulatorPlugin:
         return {name: spec.unit for name, spec in self.sensors.items()}
 
     def groups(self) -> dict[str, tuple[str, ...]]:
-        """The declared condition groups plus ``all``."""
-        return {**self.condition_groups, ALL_CONDITIONS: tuple(self.conditions)}
+        """The declared condition groups plus ``all`` (every condition not held out)."""
+        held_out = set(self.condition_groups.get(HELD_OUT_GROUP, ()))
+        everyday = tuple(c for c in self.conditions if c not in held_out)
+        return {**self.condition_groups, ALL_CONDITIONS: everyday}
 
     def resolve_conditions(self, names: Sequence[str], *, where: str) -> tuple[str, ...]:
         """Condition and group names -> condition names, groups expanded in their declared
@@ -263,11 +269,12 @@ class SimulatorPlugin:
         return mixture
 
     def pooled_groups(self) -> dict[str, tuple[str, ...]]:
-        """Default evaluation groups: each declared group, then each condition in no group
-        on its own (the pile loader: ``winter`` = A-D, then ``summer``)."""
+        """Default evaluation groups: each declared group but ``held_out``, then each
+        condition in no group on its own (the pile loader: ``winter`` = A-D, then
+        ``summer``)."""
         grouped = {c for members in self.condition_groups.values() for c in members}
         return {
-            **self.condition_groups,
+            **{g: m for g, m in self.condition_groups.items() if g != HELD_OUT_GROUP},
             **{c: (c,) for c in self.conditions if c not in grouped},
         }
 

@@ -70,8 +70,10 @@ def summarize_sweep(
     ``<metric>_mean`` and ``<metric>_std`` (std is 0 for a single job). Jobs that report
     ``<test>_successes`` and ``<test>_episodes`` (train_bc's closed-loop step, evaluate)
     also get ``<test>_pooled_success_rate`` with its 95% Wilson interval
-    (``<test>_success_low`` / ``_high``) over all the group's episodes; plotting
-    ``<test>_success_rate`` then shows that interval.
+    (``<test>_success_low`` / ``_high``) over all the group's episodes, and the seed
+    spread: the lowest and highest job's own rate (``<test>_seed_min`` / ``_seed_max``;
+    the jobs of a group differ by their seed). Plotting ``<test>_success_rate`` then
+    shows the interval.
     """
     jobs = load_jobs(sweep_dir)
     finished = [j for j in jobs if j.metrics is not None]
@@ -110,6 +112,13 @@ def summarize_sweep(
             row[f"{test}_pooled_success_rate"] = successes / episodes if episodes else math.nan
             row[f"{test}_success_low"] = low
             row[f"{test}_success_high"] = high
+            rates = [
+                int(j.metrics[f"{test}_successes"]) / int(j.metrics[f"{test}_episodes"])
+                for j in members
+                if int(j.metrics.get(f"{test}_episodes", 0))
+            ]
+            row[f"{test}_seed_min"] = min(rates) if rates else math.nan
+            row[f"{test}_seed_max"] = max(rates) if rates else math.nan
         rows.append(row)
     out_dir = Path(out_dir or sweep_dir)
     columns = list(rows[0])
@@ -126,11 +135,12 @@ def summarize_sweep(
 
 def metric_columns(columns: list[str], group_keys: list[str], metric: str) -> list[str]:
     """The group keys, ``n_jobs`` and ``metric``'s own columns (mean, std; for a success
-    rate also the pooled rate and its interval)."""
+    rate also the pooled rate, its interval and the seed spread)."""
     test = metric.removesuffix("_success_rate")
     own = [f"{metric}_mean", f"{metric}_std"]
     if metric.endswith("_success_rate"):
         own += [f"{test}_pooled_success_rate", f"{test}_success_low", f"{test}_success_high"]
+        own += [f"{test}_seed_min", f"{test}_seed_max"]
     return [*group_keys, "n_jobs", *(c for c in own if c in columns)]
 
 

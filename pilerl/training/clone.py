@@ -38,8 +38,11 @@ def cloning_actor(
     seed: int,
 ) -> TensorDictModule:
     """The untrained controller ``policy`` reading the sensor set (s, s'), normalised by
-    the dataset's ``stats``; its initial weights are drawn from ``seed``."""
+    the dataset's ``stats``; its initial weights are drawn from ``seed`` (a fitted
+    controller, the forest, takes ``seed`` as its own random state unless options set one)."""
     torch.manual_seed(seed)
+    if get_spec(policy).trainer == "fit":  # torch's seed does not reach sklearn's forest
+        options = {"seed": seed, **(options or {})}
     inputs, attention = controller_inputs(policy, sensors, attention_sensors)
     return make_actor(
         policy, sensors=inputs, stats=stats, attention_sensors=attention, options=options

@@ -34,6 +34,7 @@ TINY = {
     "record.py": ["n_episodes=2", "record_hz=20", "workers=1"],
     "build_dataset.py": [],
     "train_bc.py": [
+        "seed=0",  # one training seed: the paper's overlays sweep seed=0,1,2
         "gradient_steps=4",
         "epochs=1",
         "evaluation.episodes=1",  # left out for ensembles, which evaluate nothing
@@ -61,6 +62,10 @@ PLUGIN_TEST = (
     "tests/sim/test_third_party_plugin.py installs the documented plugin into a temporary "
     "directory and runs these commands on it"
 )
+CROSS_SOIL = (
+    "evaluates Exp. 3's three training seeds (this test trains seed 0) for hours on the "
+    "particle soil; tests/reports/test_seeds_and_soils.py builds its report section"
+)
 # command prefix -> why it is not run by this test
 NOT_RUN = {
     "bash scripts/setup.sh": "the README's front door: CI (.ci/run) runs both as written",
@@ -73,6 +78,8 @@ NOT_RUN = {
     "python -m pilerl.deploy rearm": (
         "talks to a running runtime (tests/deploy/test_deploy_runtime.py)"
     ),
+    "python recipes/evaluate.py --multirun env.soil=heightfield,particles": CROSS_SOIL,
+    "python -m pilerl.reports.paper --cross-soil": CROSS_SOIL,
     "pip install -e ./my_heater": PLUGIN_TEST,
     'python -c "from pilerl.sim import available_simulators': PLUGIN_TEST,
     "python recipes/record.py env=my_heater": PLUGIN_TEST,

@@ -114,7 +114,8 @@ def test_importing_a_plugin_is_cheap_and_needs_nothing_from_pilerl():
 def test_condition_groups_and_mixtures_resolve_by_name(name):
     plugin = get_simulator(name)
     everything = plugin.resolve_conditions(["all"], where="test")
-    assert everything == tuple(plugin.conditions)
+    held_out = plugin.condition_groups.get("held_out", ())  # never in "all" (issue #16)
+    assert everything == tuple(c for c in plugin.conditions if c not in held_out)
     for group, members in plugin.condition_groups.items():
         assert plugin.resolve_conditions([group], where="test") == members
         assert plugin.resolve_mixture({group: 2.0}, where="test") == dict.fromkeys(members, 2.0)
@@ -126,6 +127,10 @@ def test_condition_groups_and_mixtures_resolve_by_name(name):
 
 def test_the_pile_loaders_winter_group_is_a_to_d_and_pools_in_summaries():
     plugin = get_simulator("pile_loader")
-    assert plugin.condition_groups == {"winter": ("winter_a", "winter_b", "winter_c", "winter_d")}
-    assert plugin.pooled_groups() == {**plugin.condition_groups, "summer": ("summer",)}
+    winter = ("winter_a", "winter_b", "winter_c", "winter_d")
+    held_out = ("wet_clay", "frozen_crust", "dry_sand")  # issue #16: a condition-shift test
+    assert plugin.condition_groups == {"winter": winter, "held_out": held_out}
+    # held-out conditions are evaluated only where named: not in "all" nor the default pools
+    assert plugin.pooled_groups() == {"winter": winter, "summer": ("summer",)}
+    assert not set(held_out) & set(plugin.resolve_conditions(["all"], where="test"))
     assert plugin.fill_key == "fill_fraction" and "reward_success" in plugin.reward_parts

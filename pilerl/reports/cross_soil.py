@@ -1,0 +1,147 @@
+"""Controllers evaluated on two soil models: rank agreement and success gaps.
+
+The input is a sweep of ``recipes/evaluate.py`` over checkpoints and ``env.soil`` (see
+docs/experiments.md, "Held-out conditions and the cross-soil check"). Each job names its
+checkpoint; a checkpoint inside a ``train_bc`` job directory gives the controller, sensor
+set, dataset and training seed (``results.job_setup``), so the training seeds of one
+controller pool into one cell per soil and test, as in the paper's experiments.
+
+The cross-soil check is a sim-to-real proxy: if two soil models rank the controllers the
+same way (Kendall's tau over controllers) and give similar success (the gap per
+controller), the ranking is less likely to be an artefact of one model.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+
+from pilerl.runs import read_run_settings
+from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
+from pilerl.sweeps.hydra_record import HYDRA_DIR, job_directories, read_config
+
+from .results import Cell, JobSetup, TestResult, job_results, job_setup, pool_seeds
+from .stats import kendall_tau_b
+
+EVERY_CONDITION = "every condition"  # the test pooling every evaluated condition
+TAU_TARGET = 0.6  # issue #16: rank agreement between the soils
+GAP_TARGET = 0.15  # issue #16: success gap per controller [fraction]
+
+Controller = tuple[str, str, str]  # controller, sensor set, dataset ("" when unknown)
+
+
+@dataclass(frozen=True)
+class SoilCells:
+    """Cells of an evaluation sweep keyed ``(controller, sensors, dataset, test)``, per soil."""
+
+    by_soil: dict[str, dict[tuple[str, str, str, str], Cell]]
+    finished: list[Path]
+    unfinished: list[Path]
+
+
+def controller_of(checkpoint: str | None, name: str | None) -> tuple[Controller, int]:
+    """The controller a checkpoint holds and its training seed.
+
+    A checkpoint in a ``train_bc`` job directory (or that directory): its controller,
+    sensor set, dataset and seed. Otherwise (a fine-tuned actor, a file elsewhere) the
+    evaluation's ``name`` or the checkpoint's directory name, and seed 0; ``scripted``
+    without a checkpoint.
+    """
+    if checkpoint is None:
+        return (name or "scripted", "", ""), 0
+    path = Path(checkpoint)
+    run_dir = path if path.is_dir() else path.parent
+    try:
+        config = read_run_settings(run_dir) or read_config(run_dir)
+    except ValueError:  # no run record nor Hydra config: a checkpoint file on its own
+        config = {}
+    if "train_data" in config:  # a train_bc job
+        setup: JobSetup = job_setup(run_dir)
+        return (setup.controller, setup.sensors, setup.dataset), setup.seed
+    return (name or run_dir.name, "", ""), 0
+
+
+def soil_cells(sweep_dir: str | Path) -> SoilCells:
+    """Read every evaluate job under ``sweep_dir``: its soil, controller and results."""
+    parts: dict[str, dict[tuple, list]] = defaultdict(lambda: defaultdict(list))
+    finished, unfinished = [], []
+    for job_dir in job_directories(sweep_dir):
+        config = read_run_settings(job_dir) or read_config(job_dir)
+        try:
+            env = config.get("env") or {}
+            soil = str(env["soil"])
+        except (KeyError, TypeError):
+            raise ValueError(f"{job_dir / HYDRA_DIR}: no env.soil (not an evaluate job)") from None
+        controller, seed = controller_of(config.get("checkpoint"), config.get("name"))
+        results = job_results(job_dir, config)
+        if results is None:
+            unfinished.append(job_dir)
+            continue
+        finished.append(job_dir)
+        simulator = env.get("simulator", DEFAULT_SIMULATOR)
+        results[EVERY_CONDITION] = pool_conditions(results, get_simulator(simulator).conditions)
+        setup = JobSetup(job_dir, *controller, seed=seed, config=config)
+        for test, result in results.items():
+            parts[soil][(*controller, test)].append((setup, result))
+    by_soil = {
+        soil: {key: pool_seeds(members) for key, members in cells.items()}
+        for soil, cells in parts.items()
+    }
+    return SoilCells(by_soil, finished, unfinished)
+
+
+def pool_conditions(results: dict[str, TestResult], conditions) -> TestResult:
+    """One job's episodes over every evaluated condition (groups left out: no double count)."""
+    own = [r for test, r in results.items() if test in conditions]
+    modes: dict[str, int] = {}
+    for result in own:
+        for mode, n in result.failure_modes.items():
+            modes[mode] = modes.get(mode, 0) + n
+    outcomes = {k: ok for result in own for k, ok in result.outcomes.items()}
+    return TestResult(
+        successes=sum(r.successes for r in own),
+        episodes=sum(r.episodes for r in own),
+        failure_modes=modes,
+        outcomes=outcomes,
+    )
+
+
+@dataclass(frozen=True)
+class SoilAgreement:
+    """Two soils compared on one test over the controllers both evaluated."""
+
+    test: str
+    soils: tuple[str, str]
+    controllers: list[Controller]
+    rates: list[tuple[float, float]]  # per controller: (first soil, second soil)
+    tau: float  # Kendall's tau-b over the controllers (nan: a constant ranking)
+
+    @property
+    def gaps(self) -> list[float]:
+        """First soil's success minus the second's, per controller [fraction]."""
+        return [a - b for a, b in self.rates]
+
+    @property
+    def meets_target(self) -> bool:
+        """tau >= 0.6 and every gap within 15 points (issue #16's target)."""
+        return self.tau >= TAU_TARGET and all(abs(g) <= GAP_TARGET for g in self.gaps)
+
+
+def soil_agreement(
+    cells: SoilCells, soils: tuple[str, str], test: str = EVERY_CONDITION
+) -> SoilAgreement:
+    """Compare ``soils`` on ``test``: per-controller rates and Kendall's tau over them."""
+    for soil in soils:
+        if soil not in cells.by_soil:
+            raise ValueError(f"soil {soil!r} not evaluated; evaluated: {sorted(cells.by_soil)}")
+    first, second = (cells.by_soil[s] for s in soils)
+    controllers = sorted(k[:3] for k in first.keys() & second.keys() if k[3] == test)
+    if len(controllers) < 2:
+        raise ValueError(
+            f"test {test!r}: {len(controllers)} controller(s) on both soils {soils}; "
+            "Kendall's tau needs at least 2"
+        )
+    rates = [(first[(*c, test)].rate, second[(*c, test)].rate) for c in controllers]
+    tau = kendall_tau_b([a for a, _ in rates], [b for _, b in rates])
+    return SoilAgreement(test, soils, controllers, rates, tau)

@@ -1,0 +1,328 @@
+"""Seeds as an axis of closed-loop results: exact tests, seed-aware claims, cross-soil tau."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pilerl.reports import paper_numbers
+from pilerl.reports.comparisons import compare, threshold
+from pilerl.reports.cross_soil import EVERY_CONDITION, soil_agreement, soil_cells
+from pilerl.reports.paper import build_report, check_claim
+from pilerl.reports.results import Cell, closed_loop_cells
+from pilerl.reports.stats import fisher_greater_p, kendall_tau_b, sign_flip_p
+
+# --- exact tests against hand-computed values ---------------------------------------------
+
+
+def test_sign_flip_test_counts_every_sign_pattern():
+    assert sign_flip_p([1, 1, 1]) == 1 / 8  # only all-positive reaches 3
+    # sums of three +-1: 3, 1, -1, -3 with 1, 3, 3, 1 patterns; P(S >= 1) = 4/8
+    assert sign_flip_p([1, 1, -1]) == 0.5
+    assert sign_flip_p([0, 0, 1]) == 0.5  # ties carry no sign
+    assert sign_flip_p([]) == 1.0 and sign_flip_p([0, 0]) == 1.0
+    # McNemar exact: 10 discordant pairs all for A: 2^-10
+    assert sign_flip_p([1] * 10 + [0] * 30) == 1 / 1024
+    # magnitudes 2 and 1: sums 3, 1, -1, -3 one pattern each; observed 2 - 1 = 1
+    assert sign_flip_p([2, -1]) == 0.5
+    assert sign_flip_p([2, 1]) == 0.25
+
+
+def test_fisher_exact_matches_the_hypergeometric_tail():
+    # 8/10 vs 2/10: P(X >= 8), X ~ Hypergeometric(20, 10 successes, 10 drawn)
+    expected = (45 * 45 + 10 * 10 + 1) / math.comb(20, 10)
+    assert fisher_greater_p(8, 10, 2, 10) == pytest.approx(expected)
+    assert fisher_greater_p(2, 10, 8, 10) > 0.99
+    with pytest.raises(ValueError, match="11 successes of 10"):
+        fisher_greater_p(11, 10, 0, 10)
+
+
+def test_kendall_tau_b_by_hand_and_against_scipy():
+    # 6 pairs, 5 concordant and 1 discordant (2 and 3 swapped): (5 - 1) / 6
+    assert kendall_tau_b([1, 2, 3, 4], [1, 3, 2, 4]) == pytest.approx(4 / 6)
+    # one tie in each: 4 concordant, 0 discordant, tau-b = 4 / sqrt(5 * 5)
+    assert kendall_tau_b([1, 1, 2, 3], [1, 2, 2, 3]) == pytest.approx(0.8)
+    assert kendall_tau_b([1, 2, 3], [3, 2, 1]) == pytest.approx(-1.0)
+    assert math.isnan(kendall_tau_b([0.5, 0.5], [0.1, 0.2]))
+    scipy_stats = pytest.importorskip("scipy.stats")
+    x, y = [0.1, 0.4, 0.4, 0.9, 0.3, 0.0], [0.2, 0.5, 0.1, 0.9, 0.3, 0.3]
+    assert kendall_tau_b(x, y) == pytest.approx(scipy_stats.kendalltau(x, y).statistic)
+    with pytest.raises(ValueError, match="at least 2"):
+        kendall_tau_b([1], [1])
+
+
+# --- seed-aware claims ----------------------------------------------------------------------
+
+
+def cell(per_seed_wins: dict[int, list[bool]], conditions=("winter_a",)) -> Cell:
+    """A cell whose seeds each ran the same starts 0..n-1 in ``conditions``."""
+    outcomes = {
+        (seed, condition, start): ok
+        for seed, wins in per_seed_wins.items()
+        for condition in conditions
+        for start, ok in enumerate(wins)
+    }
+    per_seed = {
+        seed: (sum(wins) * len(conditions), len(wins) * len(conditions))
+        for seed, wins in per_seed_wins.items()
+    }
+    return Cell(
+        successes=sum(s for s, _ in per_seed.values()),
+        episodes=sum(n for _, n in per_seed.values()),
+        seeds=len(per_seed),
+        per_seed=per_seed,
+        outcomes=outcomes,
+    )
+
+
+def test_a_beats_b_is_a_paired_test_over_seeds_and_starts():
+    a = cell({0: [True] * 10, 1: [True] * 10, 2: [True] * 5 + [False] * 5})
+    b = cell({0: [False] * 10, 1: [True] * 10, 2: [False] * 10})
+    test = compare(a, b)
+    # discordant pairs: seed 0 all 10, seed 2 the first 5; all for A
+    assert test.method == "paired" and test.pairs == 30
+    assert (test.a_ahead, test.b_ahead) == (15, 0)
+    assert test.p_value == 2**-15 and test.significant
+    assert (test.seeds_ahead, test.seeds) == (2, 3)
+    assert not compare(b, a).significant
+    # the same rates on unpaired episodes: only seed 1 shares starts with b, all ties
+    shifted = Cell(
+        a.successes,
+        a.episodes,
+        3,
+        per_seed=a.per_seed,
+        outcomes={(seed + 10, c, start): ok for (seed, c, start), ok in a.outcomes.items()},
+    )
+    assert compare(shifted, b).method == "unpaired"
+
+
+def test_a_small_paired_lead_is_not_enough():
+    a = cell({0: [True, True, False, False], 1: [True, False, False, False]})
+    b = cell({0: [False, True, False, False], 1: [False, False, False, False]})
+    test = compare(a, b)
+    assert (test.a_ahead, test.b_ahead) == (2, 0) and test.p_value == 0.25
+    assert not test.significant  # 38% vs 13% on 8 starts: not shown
+
+
+def test_summer_against_the_winter_days_pairs_each_start():
+    summer = cell({0: [True] * 8}, conditions=("summer",))
+    winter = cell({0: [False] * 8}, conditions=("winter_a", "winter_b", "winter_c", "winter_d"))
+    test = compare(summer, winter)
+    assert test.method == "paired" and test.pairs == 8 and test.p_value == 2**-8
+    half = cell({0: [True, False] * 4}, conditions=("winter_a", "winter_b"))
+    assert compare(summer, half).pairs == 8
+
+
+def test_threshold_claims_need_the_interval_and_every_seed():
+    low = cell({0: [False] * 40, 1: [False] * 40, 2: [False] * 38 + [True] * 2})
+    assert threshold(low, below=0.2).holds
+    # pooled 10/120 is low, but one seed reaches 25%: not every seed stays below 20%
+    mixed = cell({0: [False] * 40, 1: [False] * 40, 2: [True] * 10 + [False] * 30})
+    check = threshold(mixed, below=0.2)
+    assert check.interval_side and check.seeds_against == 1 and not check.holds
+    high = cell({0: [True] * 40, 1: [True] * 40, 2: [True] * 39 + [False]})
+    assert threshold(high, at_least=0.8).holds
+    few = cell({0: [True] * 5})  # 5/5: the interval reaches down to 57%
+    assert not threshold(few, at_least=0.8).holds
+    with pytest.raises(ValueError, match="exactly one"):
+        threshold(few)
+
+
+def test_claims_use_the_seed_aware_tests():
+    key_a, key_b = ("dannet", "s_pt", "d_ii", "winter"), ("nnetv2", "s_pt", "d_ii", "winter")
+    cells = {
+        key_a: cell({s: [True] * 9 + [False] for s in range(3)}),
+        key_b: cell({s: [False] * 9 + [True] for s in range(3)}),
+    }
+    claim = paper_numbers.Claim("DANNet beats NNetV2", higher=((key_a, key_b),))
+    ((holds, evidence),) = check_claim(claim, cells)
+    assert holds and "paired over 30 seeded starts" in evidence and "ahead on 3 of 3" in evidence
+    below = paper_numbers.Claim("NNetV2 fails", each=(key_b,), below=0.2)
+    ((holds, evidence),) = check_claim(below, cells)
+    assert not holds and "interval not below 20%" in evidence
+
+
+# --- sweeps with seeds on disk ------------------------------------------------------------
+
+
+def seeded_job(
+    root: Path,
+    n: int,
+    *,
+    policy: str,
+    seed: int,
+    wins: dict[str, list[bool]],
+    soil=None,
+    checkpoint=None,
+) -> Path:
+    """A finished train_bc job (or, with ``soil``, an evaluate job) with episodes.csv."""
+    job = root / str(n)
+    evaluation = job if soil else job / "evaluation"
+    (job / ".hydra").mkdir(parents=True)
+    evaluation.mkdir(exist_ok=True)
+    config = {
+        "policy": {"name": policy},
+        "train_data": "data/datasets/d_ii_summer",
+        "seed": seed,
+        "epochs": 150,
+        "gradient_steps": 5000,
+        "evaluation": {"episodes": 4, "conditions": list(wins), "seed": 1},
+    }
+    if soil:
+        config = {"checkpoint": checkpoint, "name": None, "env": {"soil": soil}}
+    hydra = {"hydra": {"runtime": {"choices": {"sensors": "s_pt", "policy": policy}}}}
+    (job / ".hydra" / "config.yaml").write_text(yaml.safe_dump(config))
+    (job / ".hydra" / "hydra.yaml").write_text(yaml.safe_dump(hydra))
+    lines = ["controller,condition,episode,seed,success"]
+    summary = {}
+    for condition, outcomes in wins.items():
+        lines += [f"{policy},{condition},{i},{1 + i},{ok}" for i, ok in enumerate(outcomes)]
+        summary[condition] = {"successes": sum(outcomes), "episodes": len(outcomes)}
+    winter = [c for c in wins if c.startswith("winter_")]
+    if len(winter) > 1:
+        summary["winter"] = {
+            "successes": sum(sum(wins[c]) for c in winter),
+            "episodes": sum(len(wins[c]) for c in winter),
+        }
+    (evaluation / "episodes.csv").write_text("\n".join(lines) + "\n")
+    (evaluation / "summary.json").write_text(json.dumps(summary))
+    return job
+
+
+def test_cells_keep_each_seed_and_each_condition(tmp_path):
+    sweep = tmp_path / "exp"
+    for seed, a in enumerate(([True] * 4, [True, True, False, False], [False] * 4)):
+        seeded_job(sweep, seed, policy="rf", seed=seed, wins={"winter_a": a, "winter_c": a})
+    cells, finished, _ = closed_loop_cells(sweep)
+    winter = cells[("rf", "s_pt", "d_ii", "winter")]
+    assert (winter.successes, winter.episodes, winter.seeds) == (12, 24, 3)
+    assert winter.seed_rates == {0: 1.0, 1: 0.5, 2: 0.0} and winter.seed_spread == (0.0, 1.0)
+    assert len(winter.outcomes) == 24 and winter.outcomes[(1, "winter_c", 3)] is False
+    assert cells[("rf", "s_pt", "d_ii", "winter_a")].episodes == 12
+    # the same seed twice in one cell is refused, naming the jobs
+    seeded_job(sweep, 3, policy="rf", seed=1, wins={"winter_a": [True]})
+    with pytest.raises(ValueError, match="training seed 1 appears in several jobs"):
+        closed_loop_cells(sweep)
+
+
+def test_report_rows_show_the_seed_spread_and_every_condition(tmp_path):
+    sweep = tmp_path / "exp3"
+    wins = {
+        "winter_a": [True] * 4,
+        "winter_b": [True] * 4,
+        "winter_c": [True] * 4,
+        "winter_d": [True] * 4,
+        "wet_clay": [False] * 4,
+        "dry_sand": [True] * 4,
+    }
+    for seed in range(3):
+        seeded_job(sweep, seed, policy="dannet", seed=seed, wins=wins)
+    poor = dict.fromkeys(wins, [False] * 4) | {"winter_b": [True, False, False, False]}
+    for seed in range(3):
+        seeded_job(sweep, 3 + seed, policy="nnetv2", seed=seed, wins=poor)
+    markdown, _ = build_report(out_dir=tmp_path / "report", exp3=sweep)
+    text = markdown.read_text()
+    # DANNet 48/48 in winter, NNetV2 3/48: the paper's 100% vs 0% with p_t on D_II
+    assert "| 100% | 48/48 | 93%–100% | agrees | not recorded | yes | 100% (3 seeds) |" in text
+    assert "| 6% | 3/48 | 2%–17% | sim higher | not recorded | yes | 6% (3 seeds) |" in text
+    row = next(
+        line for line in text.splitlines() if line.startswith("| NNetV2 | + p_t | D_II | 3 |")
+    )
+    # winter_a .. winter_d, wet_clay, dry_sand, winter pooled; [lowest-highest seed]
+    assert row.endswith(
+        "| 0% [0%–0%] | 25% [25%–25%] | 0% [0%–0%] | 0% [0%–0%] | 0% [0%–0%] | 0% [0%–0%] "
+        "| 6% [6%–6%] |"
+    )
+    claim = next(line for line in text.splitlines() if "even on D_II" in line)
+    assert "paired over 48 seeded starts × seeds (45 vs 0 better)" in claim
+    assert "p=2.84e-14" in claim  # 2^-45
+    assert "| holds in part |" in claim  # ANNet not run
+
+
+def test_cross_soil_report_gives_tau_and_the_gap_per_controller(tmp_path):
+    train = tmp_path / "train"
+    rates = {"rf": (4, 3), "nnetv2": (2, 2), "dannet": (3, 4)}  # heightfield, particles wins
+    n = 0
+    for policy, (hf, pt) in rates.items():
+        run = seeded_job(train, n, policy=policy, seed=0, wins={"summer": [True]})
+        for soil, k in (("heightfield", hf), ("particles", pt)):
+            wins = [True] * k + [False] * (4 - k)
+            seeded_job(
+                tmp_path / "soils",
+                n,
+                policy=policy,
+                seed=0,
+                soil=soil,
+                checkpoint=str(run / "best.pt"),
+                wins={"summer": wins, "wet_clay": wins},
+            )
+            n += 1
+    cells = soil_cells(tmp_path / "soils")
+    assert set(cells.by_soil) == {"heightfield", "particles"}
+    agreement = soil_agreement(cells, ("heightfield", "particles"))
+    assert agreement.test == EVERY_CONDITION
+    assert [c[0] for c in agreement.controllers] == ["dannet", "nnetv2", "rf"]
+    assert agreement.rates == [(0.75, 1.0), (0.5, 0.5), (1.0, 0.75)]
+    assert agreement.tau == pytest.approx(1 / 3)  # 2 concordant, 1 discordant of 3
+    assert agreement.gaps == [-0.25, 0.0, 0.25] and not agreement.meets_target
+    markdown, _ = build_report(out_dir=tmp_path / "report", cross_soil=tmp_path / "soils")
+    text = markdown.read_text()
+    assert "| every condition | 3 | 0.33 | 25 points | no |" in text
+    assert "| RF | + p_t | D_II | 100% | 75% | +25 points |" in text
+    assert "Soil model `particles`:" in text and "| wet_clay |" in text
+
+
+# --- a tiny real sweep over seeds -----------------------------------------------------------
+
+
+def test_a_real_sweep_over_seeds_pools_them_on_paired_starts(datasets, tmp_path):
+    from test_training import train_bc_recipe
+
+    from pilerl.policies import actor_policy, load_actor
+
+    root, _, _ = datasets
+    sweep = tmp_path / "sweep"
+    result = train_bc_recipe(
+        "--multirun",
+        f"hydra.sweep.dir={sweep}",
+        "seed=0,1",
+        "policy=rf",
+        "sensors=s",
+        "evaluation.episodes=2",
+        "evaluation.conditions=[summer,winter_c]",
+        "evaluation.workers=1",
+        "evaluation.videos=false",
+        data_root=root,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    cells, finished, _ = closed_loop_cells(sweep)
+    assert sorted(job.seed for job in finished) == [0, 1]
+    winter = cells[("rf", "s", "d_i", "winter")]
+    assert winter.seeds == 2 and sorted(winter.per_seed) == [0, 1]
+    # both seeds ran the same two seeded starts: the keys differ only in the training seed
+    starts = {seed: {(c, s) for t, c, s in winter.outcomes if t == seed} for seed in (0, 1)}
+    assert starts[0] == starts[1] and len(starts[0]) == 2
+    # the training seed reaches the forest (sklearn's random state, not torch's)
+    forests = [actor_policy(load_actor(job.path / "best.pt")) for job in finished]
+    assert [f.config.options["seed"] for f in forests] == [job.seed for job in finished]
+    first, second = (dict(f.named_buffers())["controller.threshold"] for f in forests)
+    assert first.shape != second.shape or not bool((first == second).all())
+    markdown, _ = build_report(out_dir=tmp_path / "report", exp1=sweep)
+    assert "| RF | θ1, θ2, p_d | D_I | 2 |" in markdown.read_text()  # pooled over 2 seeds
+
+
+def test_a_checkpoint_outside_a_train_bc_job_is_named_by_its_directory(tmp_path):
+    from pilerl.reports.cross_soil import controller_of
+
+    finetuned = tmp_path / "finetune" / "dannet_rlpd"
+    (finetuned / ".hydra").mkdir(parents=True)
+    (finetuned / ".hydra" / "config.yaml").write_text(yaml.safe_dump({"algorithm": "ppo"}))
+    assert controller_of(str(finetuned / "best.pt"), None) == (("dannet_rlpd", "", ""), 0)
+    assert controller_of(str(tmp_path / "x.pt"), "mine") == (("mine", "", ""), 0)
+    assert controller_of(None, None) == (("scripted", "", ""), 0)
+    train = seeded_job(tmp_path / "train", 0, policy="annet", seed=2, wins={"summer": [True]})
+    assert controller_of(str(train / "best.pt"), None) == (("annet", "s_pt", "d_ii"), 2)
