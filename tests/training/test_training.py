@@ -173,6 +173,55 @@ def test_trainer_must_fit_the_controller(datasets):
         BCSettings(trainer="adamw")
 
 
+def _train_with_bcloss(actor, data, validation, settings):
+    """The gradient loop as it was written before the contiguous fast path: TorchRL's
+    BCLoss on tensordict batches gathered by index (the reference for bit-identity)."""
+    from tensordict import TensorDict
+    from torchrl.objectives import BCLoss
+
+    policy = actor.module
+    torch.manual_seed(settings.seed)
+    data = data.select(*policy.in_keys, "action")
+    optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
+    loss_module = BCLoss(actor, loss_function="mse")
+    history, n = [], data.batch_size[0]
+    for epoch in range(settings.epochs):
+        policy.train()
+        generator = torch.Generator().manual_seed(settings.seed * 1_000_003 + epoch)
+        order, total = torch.randperm(n, generator=generator), 0.0
+        for start in range(0, n, settings.batch_size):
+            batch: TensorDict = data[order[start : start + settings.batch_size]]
+            loss = loss_module(batch)["loss_bc"]
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            total += float(loss.detach()) * batch.batch_size[0]
+        history.append({"epoch": epoch + 1, "train_loss": total / n})
+        history[-1]["validation_loss"] = validation_loss(actor, validation)
+    return actor, history, torch.get_rng_state()
+
+
+def test_gradient_step_matches_the_bcloss_path(datasets):
+    """The contiguous-tensor step gives bit-identical losses, weights and RNG state to
+    BCLoss on indexed tensordicts (DANNet: dropout draws, s' wider than s)."""
+    _, train, validation = datasets
+    data = train.to_tensordict()
+    wider = [*S, "boom_pressure", "bucket_pressure", "pump_angle"]
+    settings = BCSettings(epochs=2, batch_size=100, seed=7)
+
+    def fresh():
+        torch.manual_seed(11)
+        return make_actor("dannet", sensors=S, stats=train.stats, attention_sensors=wider)
+
+    reference, expected, expected_rng = _train_with_bcloss(fresh(), data, validation, settings)
+    actor, history = train_bc(fresh(), data, validation, settings, progress=False)
+    assert history == expected
+    assert torch.equal(torch.get_rng_state(), expected_rng)
+    want = reference.module.state_dict()
+    got = actor.module.state_dict()
+    assert all(torch.equal(got[k], want[k]) for k in want)
+
+
 def test_ensemble_members_equal_separate_runs(datasets):
     _, train, _ = datasets
     data = train.to_tensordict()
