@@ -11,8 +11,9 @@ lr 1e-3, MSE, on the same synthetic data, in one run:
 
 Each path runs ``--repeats`` times, interleaved; the table gives the median wall time and
 the ratios are medians of the per-round ratios (the machine may be shared). The ensemble
-rows train ``--seeds`` members at once (``train_bc_ensemble``, ``torch.func``) and give
-their cost in one-seed units (the median one-seed ``train_bc`` time of the same run).
+rows train ``--seeds`` members (``train_bc_ensemble``, ``torch.func``, in passes of
+``MEMBERS_PER_PASS``; above that also all in one pass, as before) and give their cost in
+one-seed units (the median one-seed ``train_bc`` time of the same run).
 
     python benchmarks/bc_throughput.py --samples 51200 --epochs 1 --seeds 8 100
 
@@ -41,6 +42,7 @@ from torchrl.objectives import BCLoss  # noqa: E402
 
 from pilerl.policies import make_actor  # noqa: E402
 from pilerl.training import BCSettings, train_bc, train_bc_ensemble  # noqa: E402
+from pilerl.training.ensemble import MEMBERS_PER_PASS  # noqa: E402
 
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
 ALL = SENSORS + ["boom_pressure", "bucket_pressure", "pump_angle"]
@@ -65,8 +67,11 @@ def fresh_actor():
     return make_actor("dannet", sensors=SENSORS, stats=STATS, attention_sensors=ALL)
 
 
-def bcloss_loop(actor, data: TensorDict, settings: BCSettings, epoch_times: list[float]):
-    """``train_bc``'s gradient loop before the contiguous path (the speed-up's baseline)."""
+def bcloss_loop(
+    actor, data: TensorDict, settings: BCSettings, epoch_times: list[float], *, say=None
+):
+    """``train_bc``'s gradient loop before the contiguous path (the speed-up's baseline);
+    ``say`` (if given) is called with a line per epoch."""
     policy = actor.module
     torch.manual_seed(settings.seed)
     data = data.select(*policy.in_keys, "action")
@@ -86,6 +91,8 @@ def bcloss_loop(actor, data: TensorDict, settings: BCSettings, epoch_times: list
             optimizer.step()
             total += float(loss.detach()) * batch.batch_size[0]
         epoch_times.append(time.perf_counter() - start)
+        if say is not None:
+            say(f"BCLoss loop: epoch {epoch + 1} took {epoch_times[-1]:.1f} s")
     return actor
 
 
@@ -127,6 +134,18 @@ def throughput(args: argparse.Namespace) -> None:
         paths[f"{seeds}-seed ensemble (torch.func)"] = lambda seeds=seeds: train_bc_ensemble(
             config, list(range(seeds)), data, None, settings, progress=False
         )
+        if seeds > MEMBERS_PER_PASS:  # before: every member in one vmap-ed pass
+            paths[f"{seeds}-seed ensemble, one pass (before)"] = lambda seeds=seeds: (
+                train_bc_ensemble(
+                    config,
+                    list(range(seeds)),
+                    data,
+                    None,
+                    settings,
+                    progress=False,
+                    members_per_pass=seeds,
+                )
+            )
     warm_up = dataset(2 * BATCH)
     bcloss_loop(fresh_actor(), warm_up, BCSettings(epochs=1), [])
     train_bc(fresh_actor(), warm_up, None, BCSettings(epochs=1), progress=False)
@@ -171,7 +190,9 @@ def paper_schedule(args: argparse.Namespace) -> None:
     train_bc(fresh_actor(), warm_up, None, BCSettings(epochs=1), progress=False)
     before_epochs: list[float] = []
     start = time.perf_counter()
-    before = bcloss_loop(fresh_actor(), data, settings, before_epochs)
+    before = bcloss_loop(
+        fresh_actor(), data, settings, before_epochs, say=lambda line: print(line, flush=True)
+    )
     before_wall = time.perf_counter() - start
 
     class EpochClock:
@@ -182,6 +203,9 @@ def paper_schedule(args: argparse.Namespace) -> None:
 
         def log_scalar(self, name: str, value: float, step: int) -> None:
             self.marks.append(time.perf_counter())
+            print(
+                f"train_bc: epoch {step} took {self.marks[-1] - self.marks[-2]:.1f} s", flush=True
+            )
 
     clock = EpochClock()
     start = time.perf_counter()

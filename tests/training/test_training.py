@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 import yaml
@@ -252,6 +253,36 @@ def test_ensemble_with_dropout_learns_and_members_differ(datasets):
     assert result.validation_loss.shape == (3, 6)
     assert (result.validation_loss[:, -1] < result.validation_loss[:, 0]).all()
     assert len(set(result.validation_loss[:, -1].round(8))) == 3
+
+
+def test_ensemble_passes_train_what_each_group_of_seeds_trains_alone(datasets):
+    """Members trained members_per_pass at a time: each pass is the ensemble of its
+    seeds alone, bit for bit (DANNet: dropout drawn per pass)."""
+    _, train, validation = datasets
+    data = train.to_tensordict()
+    config = make_actor("dannet", sensors=S, stats=train.stats).module.config
+    settings = BCSettings(epochs=1, batch_size=128)
+
+    def ensemble(seeds, members_per_pass):
+        return train_bc_ensemble(
+            config,
+            seeds,
+            data,
+            validation,
+            settings,
+            progress=False,
+            members_per_pass=members_per_pass,
+        )
+
+    in_passes = ensemble([0, 1, 2], 2)
+    alone = [ensemble([0, 1], 2), ensemble([2], 2)]
+    assert in_passes.validation_loss.shape == (3, 1)
+    assert (in_passes.train_loss == np.concatenate([a.train_loss for a in alone])).all()
+    expected = [member for a in alone for member in a.members]
+    for got, want in zip(in_passes.members, expected, strict=True):
+        assert all(torch.equal(got.state_dict()[k], v) for k, v in want.state_dict().items())
+    with pytest.raises(ValueError, match="members_per_pass >= 1"):
+        ensemble([0], 0)
 
 
 def test_train_bc_recipe_ensemble_mode_plots_mean_and_std(datasets, tmp_path):
