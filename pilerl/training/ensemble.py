@@ -10,13 +10,12 @@ mean +- std curves. Every member is trained by gradient (RAdam), NNet included: 
 Levenberg-Marquardt default applies to single runs (``train_bc``).
 
 Members are trained ``members_per_pass`` at a time (groups of consecutive seeds, one
-after the other): a step's cost grows with the members in it, and beyond a few dozen
-the stacked matrix products leave the cache (on the 2-core development machine 100
-members in one pass cost 117 one-seed runs, in passes of MEMBERS_PER_PASS about 30%
-less; ``benchmarks/bc_throughput.py``), and memory stays that of one pass. A pass
-trains exactly what ``train_bc_ensemble`` of its seeds alone trains: an ensemble of at
-most ``members_per_pass`` seeds is the one-pass result, bit for bit; a larger one draws
-each pass's dropout masks on its own.
+after the other): per member, a pass of 100 DANNets costs more than a pass of 16 (on the
+2-core development machine 100 seeds cost 109 one-seed runs in one pass and 79 in passes
+of 16, measured with ``benchmarks/bc_throughput.py``), and memory stays that of one
+pass. A pass trains exactly what ``train_bc_ensemble`` of its seeds alone trains: an
+ensemble of at most ``members_per_pass`` seeds is the one-pass result, bit for bit; a
+larger one draws each pass's dropout masks on its own.
 """
 
 from __future__ import annotations
