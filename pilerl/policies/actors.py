@@ -88,6 +88,7 @@ def actor_policy(actor: TensorDictModule | SensorPolicy) -> SensorPolicy:
 
 
 INFERENCE_CHECK_ROWS = (1, 5)  # batch sizes the trace is checked at against the module
+_ONE_READING = torch.Size([1])
 
 
 class InferenceActor(TensorDictModule):
@@ -113,9 +114,6 @@ class InferenceActor(TensorDictModule):
         return tensordict
 
 
-_ONE_READING = torch.Size([1])
-
-
 def inference_actor(actor: TensorDictModule | SensorPolicy) -> InferenceActor:
     """The actor traced (``torch.jit.trace``) and frozen in eval mode, for acting only.
 
@@ -131,8 +129,8 @@ def inference_actor(actor: TensorDictModule | SensorPolicy) -> InferenceActor:
     with torch.no_grad(), warnings.catch_warnings():
         # the shape checks in SensorPolicy are Python, not traced: InferenceActor checks
         warnings.simplefilter("ignore", torch.jit.TracerWarning)
-        # torch 2.13 deprecates jit in favour of torch.compile, which on CPU needs a C++
-        # toolchain, compiles for seconds and does not keep the outputs bit-identical
+        # torch 2.13 deprecates jit in favour of torch.compile, which on the CPU needs a
+        # C++ toolchain at run time and compiles for seconds; a trace is enough here
         warnings.filterwarnings("ignore", "`torch.jit", DeprecationWarning)
         graph = torch.jit.freeze(torch.jit.trace(policy, example, check_trace=False))
         for rows in INFERENCE_CHECK_ROWS:
