@@ -1,25 +1,48 @@
-"""Behaviour-cloning training throughput: pilerl's ``train_bc`` vs a hand-written loop.
+"""Behaviour-cloning training throughput: ``train_bc`` vs the loop it replaced and a plain one.
 
-Both train the same DANNet (s = 4 sensors, s' = all 7) with RAdam, batch 512, lr 1e-3,
-MSE, on the same data, one thread, in the same run; the ratio is pilerl / plain. The last
-row projects the paper's schedule (709,368 samples x 150 epochs) from pilerl's rate.
+Every path trains the same DANNet (s = 4 sensors, s' = all 7) with RAdam, batch 512,
+lr 1e-3, MSE, on the same synthetic data, in one run:
 
-    python benchmarks/bc_throughput.py --samples 100000 --epochs 2
+- ``BCLoss on tensordicts``: the loop ``train_bc`` ran before (TorchRL's ``BCLoss`` on a
+  tensordict batch gathered by index each step), the baseline of the speed-up;
+- ``plain PyTorch loop``: the same training written directly against the modules;
+- ``train_bc``: pilerl's loop (one contiguous tensor of normalised inputs, a row gather
+  per step).
+
+Each path runs ``--repeats`` times, interleaved; the table gives the median wall time and
+the ratios are medians of the per-round ratios (the machine may be shared). The ensemble
+rows train ``--seeds`` members (``train_bc_ensemble``, ``torch.func``, in passes of
+``MEMBERS_PER_PASS``; above that also all in one pass, as before) and give their cost in
+one-seed units (the median one-seed ``train_bc`` time of the same run).
+
+    python benchmarks/bc_throughput.py --samples 51200 --epochs 1 --seeds 8 100
+
+``--paper`` measures the paper's schedule end to end instead: ``train_bc`` and the
+``BCLoss`` loop for ``--epochs`` epochs each on a synthetic D_I-size dataset (709,368
+samples), with ``--threads`` intra-op threads, per-epoch times, and the 150-epoch wall
+time extrapolated from the median epoch (labelled as such), plus whether both paths end
+with bit-identical weights.
+
+    python benchmarks/bc_throughput.py --paper --epochs 3 --threads 2
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import time
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
+import numpy as np  # noqa: E402
 import torch  # noqa: E402
 from tensordict import TensorDict  # noqa: E402
+from torchrl.objectives import BCLoss  # noqa: E402
 
 from pilerl.policies import make_actor  # noqa: E402
 from pilerl.training import BCSettings, train_bc, train_bc_ensemble  # noqa: E402
+from pilerl.training.ensemble import MEMBERS_PER_PASS  # noqa: E402
 
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
 ALL = SENSORS + ["boom_pressure", "bucket_pressure", "pump_angle"]
@@ -29,6 +52,7 @@ STATS = {
     "n_samples": 1,
 }
 PAPER_SAMPLES, PAPER_EPOCHS = 709_368, 150
+BATCH = 512
 
 
 def dataset(n: int) -> TensorDict:
@@ -43,68 +67,188 @@ def fresh_actor():
     return make_actor("dannet", sensors=SENSORS, stats=STATS, attention_sensors=ALL)
 
 
-def plain_loop(data: TensorDict, epochs: int) -> float:
-    """The same training written directly against the modules (the baseline)."""
+def bcloss_loop(
+    actor, data: TensorDict, settings: BCSettings, epoch_times: list[float], *, say=None
+):
+    """``train_bc``'s gradient loop before the contiguous path (the speed-up's baseline);
+    ``say`` (if given) is called with a line per epoch."""
+    policy = actor.module
+    torch.manual_seed(settings.seed)
+    data = data.select(*policy.in_keys, "action")
+    optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
+    loss_module = BCLoss(actor, loss_function="mse")
+    n = data.batch_size[0]
+    for epoch in range(settings.epochs):
+        start = time.perf_counter()
+        policy.train()
+        generator = torch.Generator().manual_seed(settings.seed * 1_000_003 + epoch)
+        order, total = torch.randperm(n, generator=generator), 0.0
+        for i in range(0, n, settings.batch_size):
+            batch = data[order[i : i + settings.batch_size]]
+            loss = loss_module(batch)["loss_bc"]
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            total += float(loss.detach()) * batch.batch_size[0]
+        epoch_times.append(time.perf_counter() - start)
+        if say is not None:
+            say(f"BCLoss loop: epoch {epoch + 1} took {epoch_times[-1]:.1f} s")
+    return actor
+
+
+def plain_loop(data: TensorDict, epochs: int) -> None:
+    """The same training written directly against the modules."""
     policy = fresh_actor().module
     optimizer = torch.optim.RAdam(policy.parameters(), lr=1e-3)
     readings = torch.cat([data[k] for k in policy.in_keys], -1)
     target = data["action"]
     n = data.batch_size[0]
-    start = time.perf_counter()
     for epoch in range(epochs):
         policy.train()
         order = torch.randperm(n, generator=torch.Generator().manual_seed(epoch))
-        for i in range(0, n, 512):
-            idx = order[i : i + 512]
+        for i in range(0, n, BATCH):
+            idx = order[i : i + BATCH]
             s, s_att = policy.normalized_inputs(readings[idx])
             loss = ((policy.controller(s, s_att).action - target[idx]) ** 2).mean()
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
+
+
+def timed(call) -> float:
+    start = time.perf_counter()
+    call()
     return time.perf_counter() - start
+
+
+def throughput(args: argparse.Namespace) -> None:
+    data = dataset(args.samples)
+    settings = BCSettings(epochs=args.epochs, batch_size=BATCH)
+    paths = {
+        "BCLoss on tensordicts (before)": lambda: bcloss_loop(fresh_actor(), data, settings, []),
+        "plain PyTorch loop": lambda: plain_loop(data, args.epochs),
+        "pilerl train_bc": lambda: train_bc(fresh_actor(), data, None, settings, progress=False),
+    }
+    config = fresh_actor().module.config
+    for seeds in args.seeds:
+        paths[f"{seeds}-seed ensemble (torch.func)"] = lambda seeds=seeds: train_bc_ensemble(
+            config, list(range(seeds)), data, None, settings, progress=False
+        )
+        if seeds > MEMBERS_PER_PASS:  # before: every member in one vmap-ed pass
+            paths[f"{seeds}-seed ensemble, one pass (before)"] = lambda seeds=seeds: (
+                train_bc_ensemble(
+                    config,
+                    list(range(seeds)),
+                    data,
+                    None,
+                    settings,
+                    progress=False,
+                    members_per_pass=seeds,
+                )
+            )
+    warm_up = dataset(2 * BATCH)
+    bcloss_loop(fresh_actor(), warm_up, BCSettings(epochs=1), [])
+    train_bc(fresh_actor(), warm_up, None, BCSettings(epochs=1), progress=False)
+    train_bc_ensemble(config, [0, 1], warm_up, None, BCSettings(epochs=1), progress=False)
+    rounds: dict[str, list[float]] = {name: [] for name in paths}
+    for _ in range(args.repeats):
+        for name, call in paths.items():
+            rounds[name].append(timed(call))
+
+    def ratio(a: str, b: str) -> float:
+        return float(np.median([x / y for x, y in zip(rounds[a], rounds[b], strict=True)]))
+
+    total = args.samples * args.epochs
+    print(
+        f"DANNet, batch {BATCH}, RAdam, {args.samples:,} samples x {args.epochs} epochs, "
+        f"{torch.get_num_threads()} thread(s), median of {args.repeats} rounds\n"
+    )
+    print("| path | wall s | samples/s (all seeds) | vs plain loop | vs before | one-seed units |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for name in paths:
+        seeds = int(name.split("-")[0]) if "ensemble" in name else 1
+        wall = float(np.median(rounds[name]))
+        units = ratio(name, "pilerl train_bc")
+        print(
+            f"| {name} | {wall:.2f} | {total / wall * seeds:,.0f} | "
+            f"{ratio('plain PyTorch loop', name):.2f} | "
+            f"{ratio('BCLoss on tensordicts (before)', name):.2f} | {units:.1f} |"
+        )
+    print(
+        "\nvs plain loop / vs before: speed ratio (> 1 = faster); one-seed units: wall time "
+        "over one train_bc run (for an ensemble: what its seeds cost together)"
+    )
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak resident memory of this run: {peak_mb:,.0f} MB")
+
+
+def paper_schedule(args: argparse.Namespace) -> None:
+    data = dataset(PAPER_SAMPLES)
+    settings = BCSettings(epochs=args.epochs, batch_size=BATCH)
+    warm_up = dataset(2 * BATCH)
+    bcloss_loop(fresh_actor(), warm_up, BCSettings(epochs=1), [])
+    train_bc(fresh_actor(), warm_up, None, BCSettings(epochs=1), progress=False)
+    before_epochs: list[float] = []
+    start = time.perf_counter()
+    before = bcloss_loop(
+        fresh_actor(), data, settings, before_epochs, say=lambda line: print(line, flush=True)
+    )
+    before_wall = time.perf_counter() - start
+
+    class EpochClock:
+        """A logger that records when each epoch's row is logged."""
+
+        def __init__(self) -> None:
+            self.marks = [time.perf_counter()]
+
+        def log_scalar(self, name: str, value: float, step: int) -> None:
+            self.marks.append(time.perf_counter())
+            print(
+                f"train_bc: epoch {step} took {self.marks[-1] - self.marks[-2]:.1f} s", flush=True
+            )
+
+    clock = EpochClock()
+    start = time.perf_counter()
+    after, _ = train_bc(fresh_actor(), data, None, settings, logger=clock, progress=False)
+    after_wall = time.perf_counter() - start
+    after_epochs = list(np.diff(clock.marks))
+    same = all(
+        torch.equal(a, b)
+        for a, b in zip(
+            before.module.state_dict().values(), after.module.state_dict().values(), strict=True
+        )
+    )
+    print(
+        f"Paper schedule, DANNet, batch {BATCH}, {PAPER_SAMPLES:,} samples, {args.epochs} of "
+        f"{PAPER_EPOCHS} epochs measured, {torch.get_num_threads()} thread(s)\n"
+    )
+    print("| path | epochs s | measured wall s | 150 epochs (extrapolated) |")
+    print("|---|---|---:|---:|")
+    for name, epochs, wall in (
+        ("BCLoss on tensordicts (before)", before_epochs, before_wall),
+        ("pilerl train_bc", after_epochs, after_wall),
+    ):
+        listed = ", ".join(f"{t:.1f}" for t in epochs)
+        projected = float(np.median(epochs)) * PAPER_EPOCHS / 60
+        print(f"| {name} | {listed} | {wall:.1f} | {projected:.1f} min |")
+    per_epoch = [b / a for a, b in zip(after_epochs, before_epochs, strict=True)]
+    print(
+        f"\nper-epoch speed-up of train_bc over the BCLoss loop (median over epochs): "
+        f"{np.median(per_epoch):.2f}x; final weights bit-identical: {same}"
+    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--samples", type=int, default=100_000)
-    parser.add_argument("--epochs", type=int, default=2)
+    parser.add_argument("--samples", type=int, default=51_200)
+    parser.add_argument("--epochs", type=int, default=1)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--seeds", type=int, nargs="*", default=[8])
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--paper", action="store_true", help="the paper's schedule, see above")
     args = parser.parse_args()
-    torch.set_num_threads(1)
-    data = dataset(args.samples)
-    plain = plain_loop(data, args.epochs)
-    start = time.perf_counter()
-    train_bc(fresh_actor(), data, None, BCSettings(epochs=args.epochs), progress=False)
-    pilerl = time.perf_counter() - start
-    total = args.samples * args.epochs
-    print(f"DANNet, batch 512, RAdam, {args.samples:,} samples x {args.epochs} epochs, 1 thread\n")
-    print("| path | wall s | samples/s | vs plain loop |")
-    print("|---|---:|---:|---:|")
-    print(f"| plain PyTorch loop | {plain:.1f} | {total / plain:,.0f} | 1.00 |")
-    print(
-        f"| pilerl train_bc (BCLoss) | {pilerl:.1f} | {total / pilerl:,.0f} | "
-        f"{plain / pilerl:.2f} |"
-    )
-    one = pilerl
-    seeds = 8
-    start = time.perf_counter()
-    train_bc_ensemble(
-        fresh_actor().module.config,
-        list(range(seeds)),
-        data,
-        None,
-        BCSettings(epochs=args.epochs),
-        progress=False,
-    )
-    ensemble = time.perf_counter() - start
-    print(
-        f"| {seeds}-seed ensemble (torch.func) | {ensemble:.1f} | "
-        f"{total * seeds / ensemble:,.0f} | {seeds * one / ensemble:.2f}x vs {seeds} x one seed |"
-    )
-    projected = PAPER_SAMPLES * PAPER_EPOCHS / (total / pilerl)
-    print(
-        f"\nPaper schedule ({PAPER_SAMPLES:,} samples x {PAPER_EPOCHS} epochs) at pilerl's "
-        f"rate: {projected / 60:.0f} min on one core"
-    )
+    torch.set_num_threads(args.threads)
+    paper_schedule(args) if args.paper else throughput(args)
 
 
 if __name__ == "__main__":

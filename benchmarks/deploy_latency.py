@@ -2,9 +2,10 @@
 
 The same DANNet (s = 4 sensors, s' = all 7 of the simulator's layout) is served by the
 runtime (``pilerl.deploy.ControlRuntime``) in its own process pinned to one core, once
-as its ONNX export (onnxruntime, one thread) and once as its checkpoint (the TorchRL
-``TensorDictModule`` actor, one thread). A machine process sends a sensor packet every
-50 ms over loopback UDP and receives the commands. Reported per path:
+as its ONNX export (onnxruntime, one thread) and once as its checkpoint (its
+``inference_actor``: the traced, frozen policy behind a thin ``TensorDictModule``, one
+thread). A machine process sends a sensor packet every 50 ms over loopback UDP and
+receives the commands. Reported per path:
 
 - in -> out: sensor datagram received -> command datagram sent, on the runtime's clock
   (the runtime's own work: decode, watchdog, inference, encode, send); p50, p99, max;

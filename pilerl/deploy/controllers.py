@@ -69,12 +69,15 @@ class OnnxController:
 
 
 class CheckpointController:
-    """A pilerl actor checkpoint, run as its ``TensorDictModule`` under ``inference_mode``."""
+    """A pilerl actor checkpoint, run under ``inference_mode``: a neural controller as its
+    ``inference_actor`` (traced, frozen; bit-identical outputs), the forest as its actor."""
 
     def __init__(self, path: str | Path) -> None:
-        from pilerl.policies import load_actor
+        from pilerl.policies import RandomForestActor, load_actor
+        from pilerl.policies.actors import inference_actor
 
-        self.actor = load_actor(path)
+        actor = load_actor(path)
+        self.actor = actor if isinstance(actor, RandomForestActor) else inference_actor(actor)
         self.input_names = list(self.actor.in_keys)
         self.name = Path(path).name
 

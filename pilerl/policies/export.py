@@ -22,7 +22,7 @@ from tensordict.nn import TensorDictModule
 
 from pilerl.io import atomic_path
 
-from .actors import actor_policy
+from .actors import actor_policy, example_readings
 from .checkpoint import load_actor, read_provenance
 from .policy import SensorPolicy
 from .random_forest import RandomForestController
@@ -45,14 +45,6 @@ def _exportable(actor: TensorDictModule | SensorPolicy) -> SensorPolicy:
     return policy.eval()
 
 
-def _example_readings(policy: SensorPolicy, rows: int, seed: int = 0) -> tuple[torch.Tensor, ...]:
-    """Readings spread over each sensor's recorded range (mean +- 3 std)."""
-    generator = torch.Generator().manual_seed(seed)
-    mean, std = policy.normalizer.mean, policy.normalizer.std
-    values = mean + 3 * std * (2 * torch.rand(rows, len(mean), generator=generator) - 1)
-    return tuple(values[:, i : i + 1].contiguous() for i in range(len(mean)))
-
-
 def _dynamic_batch(policy: SensorPolicy) -> tuple:
     batch = torch.export.Dim("batch")
     return (tuple({0: batch} for _ in policy.in_keys),)
@@ -62,7 +54,7 @@ def export_program(actor: TensorDictModule | SensorPolicy, path: str | Path) -> 
     """Save a ``torch.export`` program (``.pt2``; load with ``torch.export.load``)."""
     policy = _exportable(actor)
     program = torch.export.export(
-        policy, _example_readings(policy, 4), dynamic_shapes=_dynamic_batch(policy)
+        policy, example_readings(policy, 4), dynamic_shapes=_dynamic_batch(policy)
     )
     path = Path(path)
     with atomic_path(path) as tmp:
@@ -91,7 +83,7 @@ def export_onnx(
     with atomic_path(path) as tmp:
         torch.onnx.export(
             policy,
-            _example_readings(policy, 4),
+            example_readings(policy, 4),
             str(tmp),
             input_names=policy.in_keys,
             output_names=policy.out_keys,
@@ -109,7 +101,7 @@ def export_onnx(
             entry.key, entry.value = "pilerl.provenance", json.dumps(provenance, default=str)
             onnx.save(model, str(tmp))
         session = onnxruntime.InferenceSession(tmp.read_bytes())  # the bytes alone
-        readings = _example_readings(policy, CHECK_ROWS, seed=1)
+        readings = example_readings(policy, CHECK_ROWS, seed=1)
         feeds = {key: r.numpy() for key, r in zip(policy.in_keys, readings, strict=True)}
         onnx_action = session.run(["action"], feeds)[0]
         with torch.no_grad():

@@ -1,6 +1,6 @@
 """Behaviour cloning: fit a controller to demonstrations, as the paper does.
 
-Paper defaults (``BCSettings``): MSE loss (TorchRL ``BCLoss``), RAdam, batch 512, learning
+Paper defaults (``BCSettings``): MSE loss (as TorchRL's ``BCLoss``), RAdam, batch 512, learning
 rate 1e-3, 150 epochs, seeded. The validation loss (MSE on held-out demonstrations, e.g.
 winter ones) is computed after every epoch. Each controller has a default trainer
 (``pilerl.policies`` registry): NNet is trained with Levenberg-Marquardt as Halbach et al.
@@ -16,6 +16,14 @@ and a damaged file is refused with ``CheckpointError``. A run given the ``run_di
 killed run resumes from ``last.pt`` and ends with the same weights as an uninterrupted
 run: the batch order of epoch k is drawn from a generator seeded with (seed, k), and the
 dropout RNG state is restored.
+
+The gradient step reads one contiguous tensor: the controller inputs (s, s') of the whole
+training set are normalised once, and each batch is a row gather from them, so a step
+pays for the model and RAdam, not for TensorDict indexing or TorchRL's ``BCLoss``
+wrapper. It computes exactly what ``BCLoss(actor, loss_function="mse")`` on the indexed
+tensordict computed (the same element-wise normalisation, forward, dropout draws and
+mean), so a fixed seed gives bit-identical losses and weights (pinned by
+``tests/training/test_training.py::test_gradient_step_matches_the_bcloss_path``).
 """
 
 from __future__ import annotations
@@ -26,9 +34,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import torch
+import torch.nn.functional as F
 from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
-from torchrl.objectives import BCLoss
 from tqdm import tqdm
 
 from pilerl.layout import RunLayout
@@ -43,6 +51,7 @@ from pilerl.policies.checkpoint_file import (
     write_checkpoint,
 )
 from pilerl.policies.levenberg_marquardt import fit_lm
+from pilerl.policies.policy import SensorPolicy
 from pilerl.policies.registry import get_spec
 
 TRAINERS = ("gradient", "levenberg_marquardt", "fit")
@@ -155,8 +164,9 @@ def train_bc(
     if layout is not None and layout.bc_state.exists():
         policy, optimizer, history, best = _resume(layout.bc_state, settings, policy.config)
         actor = policy_actor(policy)
-    loss_module = BCLoss(actor, loss_function="mse")
-    lm_inputs = policy.controller_inputs(train)[0] if trainer == "levenberg_marquardt" else None
+    # the controller inputs of every row, normalised once: a batch is a row gather
+    inputs, attention_inputs = policy.controller_inputs(train)
+    target = train["action"]
     n = train.batch_size[0]
     epochs = range(len(history), settings.epochs)
     bar = tqdm(
@@ -173,8 +183,8 @@ def train_bc(
         if trainer == "levenberg_marquardt":
             fit_lm(
                 policy.controller,
-                lm_inputs,
-                train["action"],
+                inputs,
+                target,
                 iterations=settings.lm_iterations,
                 batch_size=min(settings.lm_batch_size, n),
                 generator=generator,
@@ -182,15 +192,9 @@ def train_bc(
             train_loss = validation_loss(actor, train)
         else:
             order = torch.randperm(n, generator=generator)
-            total = 0.0
-            for start in range(0, n, settings.batch_size):
-                batch = train[order[start : start + settings.batch_size]]
-                loss = loss_module(batch)["loss_bc"]
-                optimizer.zero_grad()
-                loss.backward()
-                optimizer.step()
-                total += float(loss.detach()) * batch.batch_size[0]
-            train_loss = total / n
+            train_loss = _gradient_epoch(
+                policy, optimizer, inputs, attention_inputs, target, order, settings.batch_size
+            )
         row = {"epoch": epoch + 1, "train_loss": train_loss}
         if validation is not None:
             row["validation_loss"] = validation_loss(actor, validation)
@@ -206,6 +210,34 @@ def train_bc(
     bar.close()
     policy.eval()
     return actor, history
+
+
+def _gradient_epoch(
+    policy: SensorPolicy,
+    optimizer: torch.optim.Optimizer,
+    inputs: torch.Tensor,
+    attention_inputs: torch.Tensor | None,
+    target: torch.Tensor,
+    order: torch.Tensor,
+    batch_size: int,
+) -> float:
+    """One pass of RAdam steps over the rows in ``order``; returns the mean training loss.
+
+    ``inputs`` / ``attention_inputs`` are the normalised controller inputs s, s' of every
+    row (``SensorPolicy.controller_inputs``), ``target`` the demonstrated actions.
+    """
+    total = 0.0
+    for start in range(0, len(order), batch_size):
+        rows = order[start : start + batch_size]
+        s_att = None if attention_inputs is None else attention_inputs[rows]
+        predicted = policy.controller(inputs[rows], s_att).action
+        # BCLoss's "mse": the element-wise squared error, then its mean
+        loss = F.mse_loss(predicted, target[rows], reduction="none").mean()
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        total += float(loss.detach()) * len(rows)
+    return total / len(order)
 
 
 def _fit_forest(

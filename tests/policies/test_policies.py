@@ -34,6 +34,7 @@ from pilerl.policies import (
     make_stochastic_actor,
     save_actor,
 )
+from pilerl.policies.actors import inference_actor
 from pilerl.policies.checkpoint import CHECKPOINT_FORMAT, CHECKPOINT_VERSION
 from pilerl.policies.checkpoint_file import write_checkpoint
 
@@ -178,6 +179,41 @@ def test_unbatched_equals_batched_rows(name: str, attention_sensors: list[str] |
     batched = actor(observations.clone())["action"]
     single = torch.stack([actor(observations[i].clone())["action"] for i in range(3)])
     torch.testing.assert_close(single, batched[:3])
+
+
+@pytest.mark.parametrize(("name", "attention_sensors"), NEURAL_CASES, ids=CASE_IDS)
+@pytest.mark.parametrize("batch_size", [(), (1,), (BATCH,), (2, 5)], ids=["0", "1", "B", "2x5"])
+def test_inference_actor_writes_the_same_outputs(
+    name: str, attention_sensors: list[str] | None, batch_size: tuple[int, ...]
+) -> None:
+    actor = make_neural_actor(name, attention_sensors).eval()
+    fast = inference_actor(actor)
+    observations = make_observations(batch_size)
+    expected = actor(observations.clone())
+    got = fast(observations.clone())
+    assert sorted(got.keys()) == sorted(expected.keys())
+    for key in actor.out_keys:
+        assert torch.equal(got[key], expected[key]), key
+
+
+def test_inference_actor_is_a_snapshot_and_checks_its_inputs() -> None:
+    actor = make_neural_actor("dannet", None).train()  # tracing must not change the actor
+    fast = inference_actor(actor)
+    assert actor.training
+    observations = make_observations()
+    before = fast(observations.clone())["action"]
+    with torch.no_grad():
+        for parameter in actor.parameters():
+            parameter.add_(0.1)
+    assert torch.equal(fast(observations.clone())["action"], before)
+    assert not torch.equal(actor.eval()(observations.clone())["action"], before)
+    wrong = make_observations()
+    wrong["boom_angle"] = torch.zeros(BATCH, 2)
+    with pytest.raises(ValueError, match="'boom_angle' must have shape"):
+        fast(wrong)
+    forest = make_actor("rf", sensors=SENSORS, stats=make_stats())
+    with pytest.raises(ValueError, match="random forest"):
+        inference_actor(forest)
 
 
 def test_dannet_output_is_tanh_of_masked_pre_activation() -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 import yaml
@@ -173,6 +174,55 @@ def test_trainer_must_fit_the_controller(datasets):
         BCSettings(trainer="adamw")
 
 
+def _train_with_bcloss(actor, data, validation, settings):
+    """The gradient loop as it was written before the contiguous fast path: TorchRL's
+    BCLoss on tensordict batches gathered by index (the reference for bit-identity)."""
+    from tensordict import TensorDict
+    from torchrl.objectives import BCLoss
+
+    policy = actor.module
+    torch.manual_seed(settings.seed)
+    data = data.select(*policy.in_keys, "action")
+    optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
+    loss_module = BCLoss(actor, loss_function="mse")
+    history, n = [], data.batch_size[0]
+    for epoch in range(settings.epochs):
+        policy.train()
+        generator = torch.Generator().manual_seed(settings.seed * 1_000_003 + epoch)
+        order, total = torch.randperm(n, generator=generator), 0.0
+        for start in range(0, n, settings.batch_size):
+            batch: TensorDict = data[order[start : start + settings.batch_size]]
+            loss = loss_module(batch)["loss_bc"]
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            total += float(loss.detach()) * batch.batch_size[0]
+        history.append({"epoch": epoch + 1, "train_loss": total / n})
+        history[-1]["validation_loss"] = validation_loss(actor, validation)
+    return actor, history, torch.get_rng_state()
+
+
+def test_gradient_step_matches_the_bcloss_path(datasets):
+    """The contiguous-tensor step gives bit-identical losses, weights and RNG state to
+    BCLoss on indexed tensordicts (DANNet: dropout draws, s' wider than s)."""
+    _, train, validation = datasets
+    data = train.to_tensordict()
+    wider = [*S, "boom_pressure", "bucket_pressure", "pump_angle"]
+    settings = BCSettings(epochs=2, batch_size=100, seed=7)
+
+    def fresh():
+        torch.manual_seed(11)
+        return make_actor("dannet", sensors=S, stats=train.stats, attention_sensors=wider)
+
+    reference, expected, expected_rng = _train_with_bcloss(fresh(), data, validation, settings)
+    actor, history = train_bc(fresh(), data, validation, settings, progress=False)
+    assert history == expected
+    assert torch.equal(torch.get_rng_state(), expected_rng)
+    want = reference.module.state_dict()
+    got = actor.module.state_dict()
+    assert all(torch.equal(got[k], want[k]) for k in want)
+
+
 def test_ensemble_members_equal_separate_runs(datasets):
     _, train, _ = datasets
     data = train.to_tensordict()
@@ -203,6 +253,36 @@ def test_ensemble_with_dropout_learns_and_members_differ(datasets):
     assert result.validation_loss.shape == (3, 6)
     assert (result.validation_loss[:, -1] < result.validation_loss[:, 0]).all()
     assert len(set(result.validation_loss[:, -1].round(8))) == 3
+
+
+def test_ensemble_passes_train_what_each_group_of_seeds_trains_alone(datasets):
+    """Members trained members_per_pass at a time: each pass is the ensemble of its
+    seeds alone, bit for bit (DANNet: dropout drawn per pass)."""
+    _, train, validation = datasets
+    data = train.to_tensordict()
+    config = make_actor("dannet", sensors=S, stats=train.stats).module.config
+    settings = BCSettings(epochs=1, batch_size=128)
+
+    def ensemble(seeds, members_per_pass):
+        return train_bc_ensemble(
+            config,
+            seeds,
+            data,
+            validation,
+            settings,
+            progress=False,
+            members_per_pass=members_per_pass,
+        )
+
+    in_passes = ensemble([0, 1, 2], 2)
+    alone = [ensemble([0, 1], 2), ensemble([2], 2)]
+    assert in_passes.validation_loss.shape == (3, 1)
+    assert (in_passes.train_loss == np.concatenate([a.train_loss for a in alone])).all()
+    expected = [member for a in alone for member in a.members]
+    for got, want in zip(in_passes.members, expected, strict=True):
+        assert all(torch.equal(got.state_dict()[k], v) for k, v in want.state_dict().items())
+    with pytest.raises(ValueError, match="members_per_pass >= 1"):
+        ensemble([0], 0)
 
 
 def test_train_bc_recipe_ensemble_mode_plots_mean_and_std(datasets, tmp_path):
