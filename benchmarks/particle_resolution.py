@@ -31,6 +31,10 @@ Particles, second table (one row per resolution):
     python benchmarks/particle_resolution.py                       # 4, 6, 8 grains, 4 seeds
     python benchmarks/particle_resolution.py --mouth-grains 6 --seeds 2
     python benchmarks/particle_resolution.py --solver-iterations 40 --mouth-grains 8
+    python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
+
+``--intake-only`` prints only the heightfield table, for every condition preset (the
+expert's fill and success with either intake; no particles).
 """
 
 from __future__ import annotations
@@ -87,13 +91,15 @@ def scoop(env: gym.Env, seed: int) -> dict[str, float]:
     return result
 
 
-def run_scoops(seeds: list[int], **env_kwargs) -> tuple[dict, float, gym.Env]:
+def run_scoops(
+    seeds: list[int], condition: str = "summer", **env_kwargs
+) -> tuple[dict, float, gym.Env]:
     start = time.process_time()
-    env = gym.make(ENV_ID, condition="summer", sensor_noise=0.0, **env_kwargs)
+    env = gym.make(ENV_ID, condition=condition, sensor_noise=0.0, **env_kwargs)
     build_s = time.process_time() - start
     runs = [scoop(env, seed) for seed in seeds]
     summary = {key: float(np.mean([r[key] for r in runs])) for key in runs[0]}
-    summary["success"] = sum(r["finished"] and r["fill"] >= 0.5 for r in runs)
+    summary["success"] = sum(bool(r["finished"]) and r["fill"] >= 0.5 for r in runs)
     summary["rt"] = sum(r["sim_s"] for r in runs) / sum(r["cpu_s"] for r in runs)
     summary["rt_wall"] = sum(r["sim_s"] for r in runs) / sum(r["wall_s"] for r in runs)
     summary["fills"] = [r["fill"] for r in runs]
@@ -104,6 +110,28 @@ def fills_text(fills: list[float]) -> str:
     return ", ".join(f"{f:.2f}" for f in fills)
 
 
+def print_intake_table(seeds: list[int]) -> None:
+    """The heightfield's two intakes on every condition preset: mean fill and success."""
+    from pilerl_pile_loader.conditions import CONDITIONS
+
+    n = len(seeds)
+    print(f"heightfield, {n} seeded scoops by the nominal expert per condition")
+    header = (
+        f"{'condition':>10} {'fill fp':>7} {'swept':>5} {'succ fp':>7} "
+        f"{'fill mouth':>10} {'succ mouth':>10}"
+    )
+    print(header)
+    print("-" * len(header))
+    for condition in CONDITIONS:
+        fp, _, _ = run_scoops(seeds, condition, soil_options={"measure_mouth": True})
+        mouth, _, _ = run_scoops(seeds, condition, soil_options={"intake": "mouth"})
+        print(
+            f"{condition:>10} {fp['fill']:7.3f} {fp['swept']:5.3f} {fp['success']:>4}/{n:<2} "
+            f"{mouth['fill']:10.3f} {mouth['success']:>7}/{n:<2}",
+            flush=True,
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--mouth-grains", type=float, nargs="+", default=[4.0, 6.0, 8.0])
@@ -111,9 +139,15 @@ def main() -> None:
     parser.add_argument(
         "--solver-iterations", type=int, default=None, help="CG iterations (default: the soil's)"
     )
+    parser.add_argument(
+        "--intake-only", action="store_true", help="only the heightfield, every condition"
+    )
     args = parser.parse_args()
     seeds = list(range(args.seeds))
     n = len(seeds)
+    if args.intake_only:
+        print_intake_table(seeds)
+        return
 
     hf, _, _ = run_scoops(seeds, soil="heightfield", soil_options={"measure_mouth": True})
     hf_mouth, _, _ = run_scoops(seeds, soil="heightfield", soil_options={"intake": "mouth"})

@@ -31,7 +31,8 @@ close-packed face stands at the angle of repose and a collapsing block of them r
 up to ``PARTICLE_ZONE_DEPTH_M`` behind the toe, ``PARTICLE_ZONE_HALF_WIDTH_M`` either side
 of the bucket's path (the walls go snug against the lattice: 1.28 m and 0.72 m at the
 default resolution, the bucket is 1.3 m wide), and down to ``ACTIVE_DEPTH_M`` below the
-pile surface. (Scripted scoops move grains up to ~1.1 m behind the toe and 0.32 m deep.)
+pile surface. (The nominal expert's scoops move grains up to 0.91 m behind the toe, 0.32 m
+deep and 0.66 m aside.)
 Deeper lattice sites are the *static core*: spheres of the same size fixed to a static
 body, so grains rest on a rough bed as in the pile, and the bucket meets the core as a
 solid were it to dig that deep. The pile is uniform along its toe line, so ``reset``
@@ -56,8 +57,8 @@ pressure 0.14 MPa off on average, of about 4 MPa; 14 iterations: 0.22 MPa, 10: 0
 In the pile the cap leaves contact forces unconverged (against a converged solve the
 drive pressure reads ~15 % and the telescope pressure up to ~40 % low), and the fill
 depends on it too (docs/soil_models.md): at 6 grains across the mouth 20 and 40
-iterations give the same mean fill and 14 a quarter less; at 8, 20 are not enough
-(``conf/soil/particles_fine.yaml`` sets 40). Fewer iterations run faster but are not a
+iterations gave the same mean fill and 14 a quarter less; at 8, 20 and 40 now give the
+same (``conf/soil/particles_fine.yaml`` sets 40). Fewer iterations run faster but are not a
 cheaper version of the same pile. MuJoCo's body sleeping freezes a resting pile, so
 driving up to it costs almost nothing.
 
