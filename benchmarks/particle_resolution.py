@@ -31,6 +31,7 @@ Particles, second table (one row per resolution):
     python benchmarks/particle_resolution.py                       # 4, 6, 8 grains, 4 seeds
     python benchmarks/particle_resolution.py --mouth-grains 6 --seeds 2
     python benchmarks/particle_resolution.py --solver-iterations 40 --mouth-grains 8
+    python benchmarks/particle_resolution.py --contact-timeconst 0.004  # stiffer grains
     python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
 
 ``--intake-only`` prints only the heightfield table, for every condition preset (the
@@ -47,7 +48,10 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
-from pilerl_pile_loader.soil.particles import SOLVER_ITERATIONS  # noqa: E402
+from pilerl_pile_loader.soil.particles import (  # noqa: E402
+    CONTACT_TIMECONST_S,
+    SOLVER_ITERATIONS,
+)
 
 import pilerl  # noqa: E402,F401  (registers pilerl/PileLoading-v0)
 
@@ -140,6 +144,12 @@ def main() -> None:
         "--solver-iterations", type=int, default=None, help="CG iterations (default: the soil's)"
     )
     parser.add_argument(
+        "--contact-timeconst",
+        type=float,
+        default=None,
+        help="grain contact time constant [s] (default: the soil's)",
+    )
+    parser.add_argument(
         "--intake-only", action="store_true", help="only the heightfield, every condition"
     )
     args = parser.parse_args()
@@ -162,7 +172,11 @@ def main() -> None:
         )
 
     iterations = args.solver_iterations or SOLVER_ITERATIONS
-    print(f"\nparticles, {iterations} CG iterations per physics step, the same {n} starts")
+    timeconst = args.contact_timeconst or CONTACT_TIMECONST_S
+    print(
+        f"\nparticles, {iterations} CG iterations per physics step, contact time constant "
+        f"{timeconst} s, the same {n} starts"
+    )
     header = (
         f"{'mouth/d':>7} {'grain mm':>8} {'grains':>9} {'fill p':>6} {'vol p':>5} "
         f"{'p/hf':>5} {'p/mouth':>7} {'succ':>5} {'packed':>6} {'rt p':>5} {'rt hf':>6} "
@@ -174,6 +188,8 @@ def main() -> None:
         options = {"mouth_grains": grains}
         if args.solver_iterations is not None:
             options["solver_iterations"] = args.solver_iterations
+        if args.contact_timeconst is not None:
+            options["contact_timeconst_s"] = args.contact_timeconst
         p, build_s, env = run_scoops(seeds, soil="particles", soil_options=options)
         soil = env.unwrapped.soil
         count = f"{soil.n_particles}+{len(soil.core)}"

@@ -345,3 +345,19 @@ def test_bulk_volume_of_a_packed_bucket_matches_its_mass(which, env, default_env
 def test_unknown_fill_measure_fails_naming_the_option():
     with pytest.raises(ValueError, match="fill_measure"):
         gym.make("pilerl/PileLoading-v0", soil="particles", soil_options={"fill_measure": "kg"})
+
+
+def test_contact_time_constant_is_an_option():
+    env = make(soil_options={**COARSE, "contact_timeconst_s": 0.004})
+    soil, model = env.unwrapped.soil, env.unwrapped.model
+    first = model.body_geomadr[model.body("particle_0").id]
+    np.testing.assert_allclose(model.geom_solref[first], [0.004, 1.0])
+    assert soil.contact_timeconst_s == 0.004
+
+
+@pytest.mark.parametrize("bad", [0.001, 0.5, float("nan"), True, "0.01"])
+def test_impossible_contact_time_constant_fails_naming_the_option(bad):
+    with pytest.raises(ValueError, match="contact_timeconst_s"):
+        gym.make(
+            "pilerl/PileLoading-v0", soil="particles", soil_options={"contact_timeconst_s": bad}
+        )

@@ -163,6 +163,7 @@ class ParticleSoil(SoilModel):
         mouth_grains: float = MOUTH_GRAINS,
         solver_iterations: int = SOLVER_ITERATIONS,
         fill_measure: str = "count",
+        contact_timeconst_s: float = CONTACT_TIMECONST_S,
     ) -> None:
         """Options (``soil_options`` of the env), the resolution:
 
@@ -175,6 +176,11 @@ class ParticleSoil(SoilModel):
           them the fill, less converged (docs/soil_models.md).
         - ``fill_measure``: ``"count"`` (default, the load's mass) or ``"volume"`` (the
           load's bulk volume under its surface; module docstring).
+        - ``contact_timeconst_s``: the grains' contact time constant [s] (MuJoCo's
+          ``solref``, critically damped). Under a load F a grain of mass m overlaps its
+          neighbours by about (F / m) * tau^2, so the lighter grains of a finer pile sink
+          deeper into each other under the same bucket force; MuJoCo integrates no stiffer
+          than 2 physics steps (0.004 s at 500 Hz). docs/soil_models.md has its effect.
         """
         super().__init__(material, pile, bucket)
         if not (isinstance(max_particles, int) and 20 <= max_particles <= 5000):
@@ -199,7 +205,15 @@ class ParticleSoil(SoilModel):
                 f"ParticleSoil.fill_measure: must be one of {list(FILL_MEASURES)}, "
                 f"got {fill_measure!r}"
             )
+        if isinstance(contact_timeconst_s, bool) or not (
+            isinstance(contact_timeconst_s, int | float) and 0.002 <= contact_timeconst_s <= 0.1
+        ):
+            raise ValueError(
+                "ParticleSoil.contact_timeconst_s: must be a number in [0.002, 0.1] s, "
+                f"got {contact_timeconst_s!r}"
+            )
         self.fill_measure = fill_measure
+        self.contact_timeconst_s = float(contact_timeconst_s)
         self.max_particles = max_particles
         self.mouth_grains = float(mouth_grains)
         self.solver_iterations = solver_iterations
@@ -245,7 +259,7 @@ class ParticleSoil(SoilModel):
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
                 friction=[friction, 0.0, 0.0],
-                solref=[CONTACT_TIMECONST_S, 1.0],
+                solref=[self.contact_timeconst_s, 1.0],
                 rgba=list(PARTICLE_RGBA),
             )
         walls = self._add_walls(spec, friction)
@@ -260,7 +274,7 @@ class ParticleSoil(SoilModel):
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
                 friction=[friction, 0.0, 0.0],
-                solref=[CONTACT_TIMECONST_S, 1.0],
+                solref=[self.contact_timeconst_s, 1.0],
                 group=WALL_GROUP,
                 rgba=list(PARTICLE_RGBA),
             )
@@ -414,7 +428,7 @@ class ParticleSoil(SoilModel):
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
                 friction=[friction, 0.0, 0.0],
-                solref=[CONTACT_TIMECONST_S, 1.0],
+                solref=[self.contact_timeconst_s, 1.0],
                 group=WALL_GROUP,
                 rgba=[*PARTICLE_RGBA[:3], 0.3],
             )
