@@ -1,28 +1,41 @@
-"""How the particle pile's fill converges with resolution, and what each resolution costs.
+"""How the particle pile's fill converges with resolution, what each resolution costs, and
+what the heightfield counts as intake against what passes its bucket mouth.
 
-For each resolution (grain diameters across the bucket mouth), in one run and one thread:
-N seeded summer scoops by the scripted expert (its nominal, deterministic style) on the
-particle pile, and the same N seeded starts on the heightfield pile. Per row:
+One run, one thread. The scripted expert (nominal, deterministic style, noiseless sensors)
+scoops from N seeded summer starts on each soil; the same seeds everywhere.
 
-- ``grain mm``: grain diameter; ``mouth/d``: bucket mouth (cutting edge to lip) over it;
-- ``grains``: moving grains + static core spheres;
-- ``fill p`` / ``fill hf``: mean final fill fraction on particles / on the heightfield;
-  ``p/hf``: their ratio;
-- ``hf mouth``: the part of the heightfield's fill that entered while the bucket mouth was
-  below the undisturbed pile surface (the rest entered through the bucket's plates: the
-  heightfield takes every column under the bucket's inside, whichever way it came in);
-  ``p/mouth``: particles over that part;
-- ``packed``: the fill of a bucket packed as densely as the pile at this resolution (the
-  most a struck bucket reads; grains along the plates leave gaps);
-- ``rt p``: real-time factor on particles, simulated seconds per CPU second of this
-  one-thread process (whole episodes, approach included; CPU time, so that other work on
-  a shared machine does not count); ``rt hf``: the same on the heightfield in this run;
-  ``rt p/hf``: their ratio; ``wall p``: the wall-clock real-time factor, for reference;
-- ``build s``: CPU time to build the particle env (lattice, compile, settle).
+Heightfield, first table (one row per intake, ``soil_options={"intake": ...}``):
+
+- ``footprint`` (the default) takes every column under the bucket's inside; ``swept`` is
+  the volume its mouth swept below the pile surface in the same scoops (as a fill fraction,
+  ``measure_mouth=True``), i.e. what geometrically passed the mouth;
+- ``mouth`` admits only what the mouth sweeps (docs/soil_models.md);
+- ``success``: scoops that finished with fill >= 0.5; ``rt``: real-time factor.
+
+Particles, second table (one row per resolution):
+
+- ``mouth/d``: grain diameters across the bucket mouth; ``grain mm``; ``grains``: moving +
+  static core;
+- ``fill p``: mean final fill (``fill_measure="count"``, the load's mass at bulk density:
+  the same quantity as the heightfield's intake, pile volume taken); ``vol p``: the load's
+  bulk volume under its surface (``fill_measure="volume"``) at the end of the same scoops;
+- ``p/hf``: ``fill p`` over the default heightfield's fill; ``p/mouth``: over the
+  heightfield's fill with ``intake="mouth"``;
+- ``succ``: scoops with ``fill p`` >= 0.5 that finished; ``packed``: the fill of a bucket
+  packed as densely as the pile (the most a struck bucket reads at this resolution);
+- ``rt p``: simulated seconds per CPU second of this one-thread process (whole episodes,
+  approach included; CPU time, so that other work on a shared machine does not count);
+  ``rt hf``: the same for the default heightfield in this run; ``rt p/hf``; ``wall p``:
+  the wall-clock factor, for reference; ``build s``: CPU time to build the particle env.
 
     python benchmarks/particle_resolution.py                       # 4, 6, 8 grains, 4 seeds
     python benchmarks/particle_resolution.py --mouth-grains 6 --seeds 2
-    python benchmarks/particle_resolution.py --solver-iterations 20
+    python benchmarks/particle_resolution.py --solver-iterations 40 --mouth-grains 8
+    python benchmarks/particle_resolution.py --contact-timeconst 0.004  # stiffer grains
+    python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
+
+``--intake-only`` prints only the heightfield table, for every condition preset (the
+expert's fill and success with either intake; no particles).
 """
 
 from __future__ import annotations
@@ -35,7 +48,10 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
-from pilerl_pile_loader.soil.particles import SOLVER_ITERATIONS  # noqa: E402
+from pilerl_pile_loader.soil.particles import (  # noqa: E402
+    CONTACT_TIMECONST_S,
+    SOLVER_ITERATIONS,
+)
 
 import pilerl  # noqa: E402,F401  (registers pilerl/PileLoading-v0)
 
@@ -49,60 +65,75 @@ def make_expert(dt: float):
     return plugin_expert(dt=dt)
 
 
-def mouth_depth_m(env: gym.Env) -> float:
-    """How far [m] the lower end of the bucket mouth lies below the undisturbed pile surface
-    (negative: the whole mouth is above it)."""
-    u = env.unwrapped
-    soil, data = u.soil, u.data
-    rotation = data.xmat[u.machine.bucket_body].reshape(3, 3)
-    origin = data.xpos[u.machine.bucket_body]
-    depths = []
-    for x, z in (soil.bucket.cutting_edge_xz, soil.bucket.lip_xz):
-        point = origin + rotation @ np.array([x, 0.0, z])
-        surface = soil.pile.surface_height(point[:1], point[1:2], soil.repose_angle_rad)[0]
-        depths.append(surface - point[2])
-    return max(depths)
-
-
 def scoop(env: gym.Env, seed: int) -> dict[str, float]:
-    """One scripted scoop from a seeded start: final fill, fill gained through the mouth,
-    simulated and wall seconds."""
+    """One scripted scoop from a seeded start: final fill (and the soil's extra measures),
+    whether it finished, simulated, CPU and wall seconds."""
     obs, _ = env.reset(seed=seed)
     expert = make_expert(env.unwrapped.dt)
     expert.reset()
-    fill, mouth_fill, steps = 0.0, 0.0, 0
+    steps = 0
     start, start_cpu = time.perf_counter(), time.process_time()
     while True:
         obs, _, terminated, truncated, info = env.step(expert.act(obs))
         steps += 1
-        gain = info["fill_fraction"] - fill
-        fill = info["fill_fraction"]
-        if gain > 0 and mouth_depth_m(env) > 0.0:
-            mouth_fill += gain
         if terminated or truncated:
             break
-    return {
-        "fill": fill,
-        "mouth_fill": mouth_fill,
+    cpu_s, wall_s = time.process_time() - start_cpu, time.perf_counter() - start
+    soil = env.unwrapped.soil
+    rated_m3 = soil.bucket.rated_volume_m3
+    result = {
+        "fill": info["fill_fraction"],
+        "finished": float(info["scoop_finished"]),
         "sim_s": steps * env.unwrapped.dt,
-        "cpu_s": time.process_time() - start_cpu,
-        "wall_s": time.perf_counter() - start,
+        "cpu_s": cpu_s,
+        "wall_s": wall_s,
     }
+    if hasattr(soil, "mouth_swept_m3"):
+        result["swept"] = soil.mouth_swept_m3 / rated_m3
+    if hasattr(soil, "load_bulk_volume_m3"):
+        result["volume"] = soil.load_bulk_volume_m3() / rated_m3
+    return result
 
 
-def run_scoops(seeds: list[int], **env_kwargs) -> tuple[dict[str, float], float, gym.Env]:
+def run_scoops(
+    seeds: list[int], condition: str = "summer", **env_kwargs
+) -> tuple[dict, float, gym.Env]:
     start = time.process_time()
-    env = gym.make(ENV_ID, condition="summer", sensor_noise=0.0, **env_kwargs)
+    env = gym.make(ENV_ID, condition=condition, sensor_noise=0.0, **env_kwargs)
     build_s = time.process_time() - start
     runs = [scoop(env, seed) for seed in seeds]
-    mean = {
-        "fill": float(np.mean([r["fill"] for r in runs])),
-        "mouth_fill": float(np.mean([r["mouth_fill"] for r in runs])),
-        "rt": sum(r["sim_s"] for r in runs) / sum(r["cpu_s"] for r in runs),
-        "rt_wall": sum(r["sim_s"] for r in runs) / sum(r["wall_s"] for r in runs),
-        "fills": [r["fill"] for r in runs],
-    }
-    return mean, build_s, env
+    summary = {key: float(np.mean([r[key] for r in runs])) for key in runs[0]}
+    summary["success"] = sum(bool(r["finished"]) and r["fill"] >= 0.5 for r in runs)
+    summary["rt"] = sum(r["sim_s"] for r in runs) / sum(r["cpu_s"] for r in runs)
+    summary["rt_wall"] = sum(r["sim_s"] for r in runs) / sum(r["wall_s"] for r in runs)
+    summary["fills"] = [r["fill"] for r in runs]
+    return summary, build_s, env
+
+
+def fills_text(fills: list[float]) -> str:
+    return ", ".join(f"{f:.2f}" for f in fills)
+
+
+def print_intake_table(seeds: list[int]) -> None:
+    """The heightfield's two intakes on every condition preset: mean fill and success."""
+    from pilerl_pile_loader.conditions import CONDITIONS
+
+    n = len(seeds)
+    print(f"heightfield, {n} seeded scoops by the nominal expert per condition")
+    header = (
+        f"{'condition':>10} {'fill fp':>7} {'swept':>5} {'succ fp':>7} "
+        f"{'fill mouth':>10} {'succ mouth':>10}"
+    )
+    print(header)
+    print("-" * len(header))
+    for condition in CONDITIONS:
+        fp, _, _ = run_scoops(seeds, condition, soil_options={"measure_mouth": True})
+        mouth, _, _ = run_scoops(seeds, condition, soil_options={"intake": "mouth"})
+        print(
+            f"{condition:>10} {fp['fill']:7.3f} {fp['swept']:5.3f} {fp['success']:>4}/{n:<2} "
+            f"{mouth['fill']:10.3f} {mouth['success']:>7}/{n:<2}",
+            flush=True,
+        )
 
 
 def main() -> None:
@@ -112,38 +143,63 @@ def main() -> None:
     parser.add_argument(
         "--solver-iterations", type=int, default=None, help="CG iterations (default: the soil's)"
     )
+    parser.add_argument(
+        "--contact-timeconst",
+        type=float,
+        default=None,
+        help="grain contact time constant [s] (default: the soil's)",
+    )
+    parser.add_argument(
+        "--intake-only", action="store_true", help="only the heightfield, every condition"
+    )
     args = parser.parse_args()
     seeds = list(range(args.seeds))
+    n = len(seeds)
+    if args.intake_only:
+        print_intake_table(seeds)
+        return
 
-    hf, _, _ = run_scoops(seeds, soil="heightfield")
+    hf, _, _ = run_scoops(seeds, soil="heightfield", soil_options={"measure_mouth": True})
+    hf_mouth, _, _ = run_scoops(seeds, soil="heightfield", soil_options={"intake": "mouth"})
+    print(f"heightfield, {n} seeded summer scoops by the nominal expert")
+    header = f"{'intake':>9} {'fill':>5} {'swept':>5} {'success':>7} {'rt':>6}  fills"
+    print(header)
+    print("-" * len(header))
+    for name, row in (("footprint", hf), ("mouth", hf_mouth)):
+        print(
+            f"{name:>9} {row['fill']:5.3f} {row['swept']:5.3f} {row['success']:>4}/{n:<2} "
+            f"{row['rt']:6.1f}  {fills_text(row['fills'])}"
+        )
+
+    iterations = args.solver_iterations or SOLVER_ITERATIONS
+    timeconst = args.contact_timeconst or CONTACT_TIMECONST_S
     print(
-        f"heightfield, {len(seeds)} seeded summer scoops: fill {hf['fill']:.3f} "
-        f"(through the mouth {hf['mouth_fill']:.3f}), {hf['rt']:.1f}x real time; "
-        f"fills {', '.join(f'{f:.2f}' for f in hf['fills'])}"
+        f"\nparticles, {iterations} CG iterations per physics step, contact time constant "
+        f"{timeconst} s, the same {n} starts"
     )
     header = (
-        f"{'mouth/d':>7} {'grain mm':>8} {'grains':>11} {'fill p':>6} {'fill hf':>7} "
-        f"{'p/hf':>5} {'hf mouth':>8} {'p/mouth':>7} {'packed':>6} {'rt p':>5} {'rt hf':>6} "
+        f"{'mouth/d':>7} {'grain mm':>8} {'grains':>9} {'fill p':>6} {'vol p':>5} "
+        f"{'p/hf':>5} {'p/mouth':>7} {'succ':>5} {'packed':>6} {'rt p':>5} {'rt hf':>6} "
         f"{'rt p/hf':>7} {'wall p':>6} {'build s':>7}  fills p"
     )
-    iterations = args.solver_iterations or SOLVER_ITERATIONS
-    print(f"particles, {iterations} CG iterations per physics step")
     print(header)
     print("-" * len(header))
     for grains in args.mouth_grains:
         options = {"mouth_grains": grains}
         if args.solver_iterations is not None:
             options["solver_iterations"] = args.solver_iterations
+        if args.contact_timeconst is not None:
+            options["contact_timeconst_s"] = args.contact_timeconst
         p, build_s, env = run_scoops(seeds, soil="particles", soil_options=options)
         soil = env.unwrapped.soil
         count = f"{soil.n_particles}+{len(soil.core)}"
         print(
-            f"{soil.mouth_diameters:7.1f} {2000 * soil.radius_m:8.0f} {count:>11} "
-            f"{p['fill']:6.3f} {hf['fill']:7.3f} {p['fill'] / hf['fill']:5.2f} "
-            f"{hf['mouth_fill']:8.3f} {p['fill'] / hf['mouth_fill']:7.2f} "
+            f"{soil.mouth_diameters:7.1f} {2000 * soil.radius_m:8.0f} {count:>9} "
+            f"{p['fill']:6.3f} {p['volume']:5.3f} {p['fill'] / hf['fill']:5.2f} "
+            f"{p['fill'] / hf_mouth['fill']:7.2f} {p['success']:>2}/{n:<2} "
             f"{soil.packed_bucket_fill:6.2f} {p['rt']:5.2f} {hf['rt']:6.1f} "
             f"{p['rt'] / hf['rt']:7.3f} {p['rt_wall']:6.2f} {build_s:7.1f}  "
-            f"{', '.join(f'{f:.2f}' for f in p['fills'])}",
+            f"{fills_text(p['fills'])}",
             flush=True,
         )
         env.close()

@@ -26,6 +26,19 @@ Per update (a few per control step):
 
 Mass is conserved exactly: what leaves a column enters the bucket, what leaves the bucket
 is counted as spilled.
+
+**Intake through the mouth (option, not the default).** The default intake takes every
+column under the bucket's inside, whichever way the material came in: a bucket lowered or
+dragged onto the pile with its floor below the surface takes the material under its floor
+and back plate too, which a real bucket pushes aside. With ``intake="mouth"`` the bucket
+admits only what passes its mouth: every update, the mouth (cutting edge to top lip, over
+the bucket width; ``MOUTH_SAMPLES`` x ``MOUTH_WIDTH_SAMPLES`` patches) sweeps a volume
+along its outward normal, counted where the patch lies below the pile surface. That volume
+is a credit that the column intake above may spend, columns nearest the mouth first; the
+rest stays in the pile. Unspent credit fades with ``MOUTH_CREDIT_TIME_S``: the grid is
+5 cm, so a column enters the bucket's footprint a moment after the mouth sweeps it.
+``measure_mouth=True`` keeps the default intake and only tallies the swept volume
+(``mouth_swept_m3``), to compare the two. docs/soil_models.md has the numbers.
 """
 
 from __future__ import annotations
@@ -51,6 +64,10 @@ SPILL_TIME_CONSTANT_S = 0.15  # how fast an over-full bucket sheds its excess [s
 MAX_PILE_HEIGHT_M = 2.0  # heightfield elevation range [m]
 EDGE_SAMPLES = 7  # points along the cutting edge where the depth is sampled
 HOLDING_TABLE_POINTS = 721  # pitch samples of the holding-volume table (0.5 deg apart)
+MOUTH_SAMPLES = 16  # patches along the mouth (cutting edge to lip) for the swept volume
+MOUTH_WIDTH_SAMPLES = 5  # patches across the bucket width for the swept volume
+MOUTH_CREDIT_TIME_S = 0.2  # how long swept volume may wait for its columns [s]
+INTAKE_MODES = ("footprint", "mouth")  # the default first
 PILE_RGBA = (0.55, 0.47, 0.36, 1.0)
 RENDER_SINK_M = 0.005  # drawn pile sits this far down so bare cells hide under the ground
 
@@ -59,6 +76,36 @@ class HeightfieldSoil(SoilModel):
     """The default, fast soil model (see module docstring)."""
 
     name = "heightfield"
+
+    def __init__(
+        self,
+        material,
+        pile,
+        bucket,
+        *,
+        intake: str = "footprint",
+        measure_mouth: bool = False,
+    ) -> None:
+        """Options (``soil_options`` of the env):
+
+        - ``intake``: ``"footprint"`` (default) takes every column under the bucket's
+          inside; ``"mouth"`` only what the bucket mouth sweeps (module docstring).
+        - ``measure_mouth``: tally the volume [m^3] the mouth sweeps below the pile surface
+          (``mouth_swept_m3``) without changing the intake; ``intake="mouth"`` tallies it
+          too.
+        """
+        super().__init__(material, pile, bucket)
+        if intake not in INTAKE_MODES:
+            raise ValueError(
+                f"HeightfieldSoil.intake: must be one of {list(INTAKE_MODES)}, got {intake!r}"
+            )
+        if not isinstance(measure_mouth, bool):
+            raise ValueError(
+                f"HeightfieldSoil.measure_mouth: must be true or false, got {measure_mouth!r}"
+            )
+        self.intake = intake
+        self.measure_mouth = measure_mouth or intake == "mouth"
+        self.mouth_swept_m3 = 0.0
 
     # ------------------------------------------------------------------ build
     def add_to_spec(self, spec: mujoco.MjSpec) -> None:
@@ -127,6 +174,30 @@ class HeightfieldSoil(SoilModel):
             np.linspace(-0.45, 0.45, EDGE_SAMPLES) * self.bucket.width_m
         ).tolist()
         self.heights = np.zeros((self.nrow, self.ncol))
+        self._bind_mouth()
+
+    def _bind_mouth(self) -> None:
+        """Mouth patch centres (bucket frame) and the mouth's outward normal (bucket frame)."""
+        edge, lip = self.bucket.cutting_edge_xz, self.bucket.lip_xz
+        along = (np.arange(MOUTH_SAMPLES) + 0.5) / MOUTH_SAMPLES
+        across = ((np.arange(MOUTH_WIDTH_SAMPLES) + 0.5) / MOUTH_WIDTH_SAMPLES - 0.5) * (
+            self.bucket.width_m
+        )
+        xz = edge + along[:, None] * (lip - edge)  # (K, 2)
+        points = np.zeros((MOUTH_SAMPLES, MOUTH_WIDTH_SAMPLES, 3))
+        points[..., 0] = xz[:, None, 0]
+        points[..., 1] = across[None, :]
+        points[..., 2] = xz[:, None, 1]
+        self._mouth_local = points.reshape(-1, 3)
+        mouth_m = float(np.linalg.norm(lip - edge))
+        self._mouth_patch_m2 = mouth_m * self.bucket.width_m / len(self._mouth_local)
+        tangent = (lip - edge) / mouth_m
+        normal = np.array([tangent[1], -tangent[0]])
+        if normal @ (self.bucket.centroid_xz() - (edge + lip) / 2) > 0:
+            normal = -normal  # outward: away from the inside
+        self._mouth_normal_local = np.array([normal[0], 0.0, normal[1]])
+        self._mouth_previous: np.ndarray | None = None
+        self._mouth_credit_m3 = 0.0
 
     def reset(self, rng: np.random.Generator) -> None:
         heights = self.pile.surface_height(self._grid_x, self._grid_y, self.repose_angle_rad)
@@ -136,6 +207,9 @@ class HeightfieldSoil(SoilModel):
         self.bucket_load_kg = 0.0
         self.spilled_kg = 0.0
         self._depth_m = 0.0
+        self.mouth_swept_m3 = 0.0
+        self._mouth_previous = None
+        self._mouth_credit_m3 = 0.0
         self.initial_mass_kg = self.pile_mass_kg
         self._write_payload()
         self._write_resistance(0.0, np.array([1.0, 0.0]), 0.0)
@@ -175,6 +249,11 @@ class HeightfieldSoil(SoilModel):
         density = self.material.density_kg_m3
         pitch = machine.bucket_pitch()
         hold_m3 = float(np.interp(pitch, self._pitch_table, self._holding_table))
+        if self.measure_mouth:
+            swept_m3 = self._mouth_sweep_m3(hinge, rotation)
+            self.mouth_swept_m3 += swept_m3
+            fade = math.exp(-dt / MOUTH_CREDIT_TIME_S)
+            self._mouth_credit_m3 = self._mouth_credit_m3 * fade + swept_m3
         self._intake(hinge, heading, s_poly, z_poly, hold_m3)
 
         load_m3 = self.bucket_load_kg / density
@@ -254,11 +333,63 @@ class HeightfieldSoil(SoilModel):
         taken_m3 = float(taken.sum()) * self.cell_area_m2
         if taken_m3 <= 0.0:
             return
-        if taken_m3 > room_m3:
+        if self.intake == "mouth":
+            taken, taken_m3 = self._through_mouth(taken, s, z_floor, s_poly, z_poly, room_m3)
+            if taken_m3 <= 0.0:
+                return
+        elif taken_m3 > room_m3:
             taken *= room_m3 / taken_m3
             taken_m3 = room_m3
         self.heights[window] = heights - taken
         self.bucket_load_kg += taken_m3 * self.material.density_kg_m3
+
+    def _mouth_sweep_m3(self, hinge: np.ndarray, rotation: np.ndarray) -> float:
+        """Pile volume [m^3] the mouth swept into the bucket since the last update: each
+        patch's displacement along the mouth's outward normal times its area, where the
+        patch lies below the pile surface (0 on the first update after a reset)."""
+        points = hinge + self._mouth_local @ rotation.T
+        previous, self._mouth_previous = self._mouth_previous, points
+        if previous is None:
+            return 0.0
+        advance = (points - previous) @ (rotation @ self._mouth_normal_local)
+        cols = np.rint((points[:, 0] - self._x0) / self.dx).astype(int)
+        rows = np.rint((points[:, 1] - self._y0) / self.dy).astype(int)
+        on_grid = (cols >= 0) & (cols < self.ncol) & (rows >= 0) & (rows < self.nrow)
+        surface = np.zeros(len(points))
+        surface[on_grid] = self.heights[rows[on_grid], cols[on_grid]]
+        buried = on_grid & (points[:, 2] < surface)
+        return float(np.clip(advance[buried], 0.0, None).sum()) * self._mouth_patch_m2
+
+    def _through_mouth(
+        self,
+        taken: np.ndarray,
+        s: np.ndarray,
+        z_floor: np.ndarray,
+        s_poly: np.ndarray,
+        z_poly: np.ndarray,
+        room_m3: float,
+    ) -> tuple[np.ndarray, float]:
+        """Limit the column intake ``taken`` [m] to the mouth's swept-volume credit and the
+        room left, spending it on the columns nearest the mouth first; return the heights
+        taken and their volume [m^3]."""
+        budget_m3 = min(self._mouth_credit_m3, room_m3)
+        if budget_m3 <= 0.0:
+            return taken, 0.0
+        edge, lip = np.array([s_poly[1], z_poly[1]]), np.array([s_poly[2], z_poly[2]])
+        tangent = (lip - edge) / max(float(np.linalg.norm(lip - edge)), 1e-9)
+        # distance behind the mouth line of each column's middle of what it gives
+        middle_z = z_floor + taken / 2
+        behind = np.abs((s - edge[0]) * tangent[1] - (middle_z - edge[1]) * tangent[0])
+        flat_taken = taken.ravel()
+        order = np.argsort(np.where(flat_taken > 0, behind.ravel(), np.inf), kind="stable")
+        volumes = flat_taken[order] * self.cell_area_m2
+        before = np.cumsum(volumes) - volumes
+        granted = np.clip(budget_m3 - before, 0.0, volumes)
+        limited = np.zeros_like(flat_taken)
+        limited[order] = granted / self.cell_area_m2
+        taken_m3 = float(granted.sum())
+        self._mouth_credit_m3 -= taken_m3
+        return limited.reshape(taken.shape), taken_m3
 
     def _edge_depth(self, edge: np.ndarray, heading: np.ndarray) -> float:
         """Mean depth [m] of the cutting edge below the pile surface one cell ahead of it.

@@ -27,11 +27,20 @@ spheres in a packing are stronger than their contact friction; with this ratio t
 close-packed face stands at the angle of repose and a collapsing block of them runs out to
 ~33 deg for dry gravel's 38 deg (slump test).
 
+**Contact stiffness.** A grain of mass m pressed by a force F sinks about (F / m) tau^2
+into its neighbours (MuJoCo's soft contacts, time constant tau). Gravel grains barely
+overlap, so the contacts are as stiff as MuJoCo integrates stably: ``CONTACT_TIMECONST_S``
+= 2 physics steps (0.004 s at 500 Hz). With 0.01 s the bucket's push sank the grains
+centimetres into each other, more the lighter (finer) the grains, and the pile jammed:
+fill fell with resolution (docs/soil_models.md). The slump test reads the same at both
+(a released block of grains settles at 31 deg mean angle with 0.01 s, 33 deg with 0.004 s).
+
 **Digging zone.** Only the part of the pile the bucket reaches is made of moving grains:
 up to ``PARTICLE_ZONE_DEPTH_M`` behind the toe, ``PARTICLE_ZONE_HALF_WIDTH_M`` either side
 of the bucket's path (the walls go snug against the lattice: 1.28 m and 0.72 m at the
 default resolution, the bucket is 1.3 m wide), and down to ``ACTIVE_DEPTH_M`` below the
-pile surface. (Scripted scoops move grains up to ~1.1 m behind the toe and 0.32 m deep.)
+pile surface. (The nominal expert's scoops move grains up to 0.91 m behind the toe, 0.32 m
+deep and 0.66 m aside.)
 Deeper lattice sites are the *static core*: spheres of the same size fixed to a static
 body, so grains rest on a rough bed as in the pile, and the bucket meets the core as a
 solid were it to dig that deep. The pile is uniform along its toe line, so ``reset``
@@ -56,8 +65,8 @@ pressure 0.14 MPa off on average, of about 4 MPa; 14 iterations: 0.22 MPa, 10: 0
 In the pile the cap leaves contact forces unconverged (against a converged solve the
 drive pressure reads ~15 % and the telescope pressure up to ~40 % low), and the fill
 depends on it too (docs/soil_models.md): at 6 grains across the mouth 20 and 40
-iterations give the same mean fill and 14 a quarter less; at 8, 20 are not enough
-(``conf/soil/particles_fine.yaml`` sets 40). Fewer iterations run faster but are not a
+iterations gave the same mean fill and 14 a quarter less; at 8, 20 and 40 now give the
+same (``conf/soil/particles_fine.yaml`` sets 40). Fewer iterations run faster but are not a
 cheaper version of the same pile. MuJoCo's body sleeping freezes a resting pile, so
 driving up to it costs almost nothing.
 
@@ -72,6 +81,17 @@ driving up to it costs almost nothing.
 
 So ``pile_mass_kg + bucket_load_kg + spilled_kg`` equals the initial mass at every call.
 The ``payload`` body is left alone: the particles carry their own mass.
+
+**Fill** (``fill_measure``). ``"count"`` (default): the load's mass over the mass of a
+rated bucket at the pile's bulk density, so a bucket packed as densely as the pile reads
+``packed_bucket_fill`` (the plates leave gaps a grain wide). ``"volume"``: the bulk volume
+of the load, measured the way the heightfield measures its intake: vertical columns
+(``VOLUME_CELL_M`` square, in the heading frame) over the bucket's inside, each filled from
+the bucket floor up to the top of the highest grain in the bucket that covers it (a grain
+covers the columns within ``COVER_RADIUS_RATIO`` radii of its centre: the radius whose
+disks cover a close-packed layer), at most to the bucket's roof or mouth. Voids between
+grains under that surface count, as they do in a bulk volume; grains heaped above the
+mouth do not, as in ``"count"``. Mass bookkeeping is the same for both.
 """
 
 from __future__ import annotations
@@ -105,7 +125,7 @@ WALL_CONTYPE = 4  # the rigid rest of the pile: seen by particles only
 WALL_THICKNESS_M = 0.6  # thickness of the boxes around the zone [m]
 WALL_GROUP = 3  # geom group that MuJoCo does not draw by default
 CONTACT_CONDIM = 3  # sliding friction only: the particles cannot rotate
-CONTACT_TIMECONST_S = 0.01  # stiff particle contacts (5 physics steps) [s]
+CONTACT_TIMECONST_S = 0.004  # stiffest stable contacts: 2 physics steps at 500 Hz [s]
 PARTICLE_PRIORITY = 2  # > ground's 1: particle friction governs particle-ground contacts
 BUCKET_PRIORITY = 3  # > particles': steel friction tan(delta) governs bucket contacts
 BUCKET_GEOMS = ("bucket_floor", "bucket_back", "bucket_top", "bucket_side_l", "bucket_side_r")
@@ -127,6 +147,9 @@ FOOTPRINT_MARGIN_M = 0.25  # the footprint reaches this far in front of the toe 
 SPILL_HEIGHT_M = 0.5  # off the footprint, a particle centre below this has spilled [m]
 EDGE_WINDOW_AHEAD_M = 0.25  # particles up to this far ahead of the cutting edge set its depth
 VOLUME_GRID_M = 0.01  # grid step of the zone-volume integral [m]
+FILL_MEASURES = ("count", "volume")  # the default first
+VOLUME_CELL_M = 0.02  # column size of the load's bulk volume (fill_measure="volume") [m]
+COVER_RADIUS_RATIO = 2.0 / math.sqrt(3.0)  # disks of this x radius cover a packed layer
 
 
 class ParticleSoil(SoilModel):
@@ -147,6 +170,8 @@ class ParticleSoil(SoilModel):
         max_particles: int = MAX_PARTICLES,
         mouth_grains: float = MOUTH_GRAINS,
         solver_iterations: int = SOLVER_ITERATIONS,
+        fill_measure: str = "count",
+        contact_timeconst_s: float = CONTACT_TIMECONST_S,
     ) -> None:
         """Options (``soil_options`` of the env), the resolution:
 
@@ -157,6 +182,13 @@ class ParticleSoil(SoilModel):
         - ``solver_iterations``: MuJoCo's CG iterations per physics step (global: the
           machine's contacts too); fewer run faster but leave contact forces, and with
           them the fill, less converged (docs/soil_models.md).
+        - ``fill_measure``: ``"count"`` (default, the load's mass) or ``"volume"`` (the
+          load's bulk volume under its surface; module docstring).
+        - ``contact_timeconst_s``: the grains' contact time constant [s] (MuJoCo's
+          ``solref``, critically damped). Under a load F a grain of mass m overlaps its
+          neighbours by about (F / m) * tau^2, so the lighter grains of a finer pile sink
+          deeper into each other under the same bucket force; MuJoCo integrates no stiffer
+          than 2 physics steps (0.004 s at 500 Hz). docs/soil_models.md has its effect.
         """
         super().__init__(material, pile, bucket)
         if not (isinstance(max_particles, int) and 20 <= max_particles <= 5000):
@@ -176,6 +208,20 @@ class ParticleSoil(SoilModel):
                 "ParticleSoil.solver_iterations: must be an int in [1, 1000], "
                 f"got {solver_iterations!r}"
             )
+        if fill_measure not in FILL_MEASURES:
+            raise ValueError(
+                f"ParticleSoil.fill_measure: must be one of {list(FILL_MEASURES)}, "
+                f"got {fill_measure!r}"
+            )
+        if isinstance(contact_timeconst_s, bool) or not (
+            isinstance(contact_timeconst_s, int | float) and 0.002 <= contact_timeconst_s <= 0.1
+        ):
+            raise ValueError(
+                "ParticleSoil.contact_timeconst_s: must be a number in [0.002, 0.1] s, "
+                f"got {contact_timeconst_s!r}"
+            )
+        self.fill_measure = fill_measure
+        self.contact_timeconst_s = float(contact_timeconst_s)
         self.max_particles = max_particles
         self.mouth_grains = float(mouth_grains)
         self.solver_iterations = solver_iterations
@@ -221,7 +267,7 @@ class ParticleSoil(SoilModel):
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
                 friction=[friction, 0.0, 0.0],
-                solref=[CONTACT_TIMECONST_S, 1.0],
+                solref=[self.contact_timeconst_s, 1.0],
                 rgba=list(PARTICLE_RGBA),
             )
         walls = self._add_walls(spec, friction)
@@ -236,7 +282,7 @@ class ParticleSoil(SoilModel):
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
                 friction=[friction, 0.0, 0.0],
-                solref=[CONTACT_TIMECONST_S, 1.0],
+                solref=[self.contact_timeconst_s, 1.0],
                 group=WALL_GROUP,
                 rgba=list(PARTICLE_RGBA),
             )
@@ -390,7 +436,7 @@ class ParticleSoil(SoilModel):
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
                 friction=[friction, 0.0, 0.0],
-                solref=[CONTACT_TIMECONST_S, 1.0],
+                solref=[self.contact_timeconst_s, 1.0],
                 group=WALL_GROUP,
                 rgba=[*PARTICLE_RGBA[:3], 0.3],
             )
@@ -422,6 +468,7 @@ class ParticleSoil(SoilModel):
         self._settled_qpos = self._settle()
         self._counts = (self.n_particles, 0, 0)
         self._depth_m = 0.0
+        self._bind_volume_columns()
 
     def _settle(self) -> np.ndarray:
         """Let the lattice settle under gravity with the machine parked far behind the pile;
@@ -445,6 +492,22 @@ class ParticleSoil(SoilModel):
         settled = d.qpos[self._qpos].copy()
         mujoco.mj_resetData(m, d)
         return settled
+
+    def _bind_volume_columns(self) -> None:
+        """The bucket's inside (bucket frame), column centres across the bucket, and the
+        stencil of column offsets a grain covers, for ``fill_measure="volume"``."""
+        polygon, cell = self.bucket.polygon, VOLUME_CELL_M
+        self._polygon_local = np.zeros((len(polygon), 3))
+        self._polygon_local[:, 0], self._polygon_local[:, 2] = polygon[:, 0], polygon[:, 1]
+        half_width = self.bucket.width_m / 2
+        self._volume_y = np.arange(-half_width, half_width, cell) + cell / 2
+        reach = COVER_RADIUS_RATIO * self.radius_m
+        n = int(math.ceil(reach / cell))
+        di, dj = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
+        near = np.hypot(di * cell, dj * cell) <= reach
+        self._cover_offsets = np.stack([di[near], dj[near]], axis=1)  # (K, 2): along, across
+        self._in_bucket = np.zeros(self.n_particles, dtype=bool)
+        self._load_volume_m3: float | None = 0.0
 
     # ------------------------------------------------------------------ reset
     def reset(self, rng: np.random.Generator) -> None:
@@ -498,6 +561,8 @@ class ParticleSoil(SoilModel):
         )
         spilled = ~in_bucket & ~on_footprint & (z < SPILL_HEIGHT_M)
         n_bucket, n_spilled = int(in_bucket.sum()), int(spilled.sum())
+        self._in_bucket = in_bucket
+        self._load_volume_m3 = None  # measured when read
         self._counts = (self.n_particles - n_bucket - n_spilled, n_bucket, n_spilled)
         self.bucket_load_kg = n_bucket * self.particle_mass_kg
         self.spilled_kg = n_spilled * self.particle_mass_kg
@@ -524,6 +589,48 @@ class ParticleSoil(SoilModel):
 
     # ------------------------------------------------------------------ tallies
     @property
+    def bucket_load_volume_m3(self) -> float:
+        """The load's volume [m^3]: its mass at bulk density (``fill_measure="count"``) or
+        its bulk volume under its surface (``"volume"``; module docstring)."""
+        if self.fill_measure == "count":
+            return self.bucket_load_kg / self.material.density_kg_m3
+        if self._load_volume_m3 is None:
+            self._load_volume_m3 = self.load_bulk_volume_m3()
+        return self._load_volume_m3
+
+    def load_bulk_volume_m3(self) -> float:
+        """Bulk volume [m^3] of the grains in the bucket: vertical columns over the bucket's
+        inside, from its floor up to the top of the highest grain covering the column, at
+        most to its roof or mouth.
+
+        Measured in the vertical plane through the hinge along the heading (s, z), as the
+        heightfield's intake measures its columns (the bucket's roll is neglected)."""
+        if not self._in_bucket.any():
+            return 0.0
+        d, machine = self.data, self.machine
+        rotation = d.xmat[machine.bucket_body].reshape(3, 3)
+        hinge = d.xpos[machine.bucket_body]
+        heading = machine.heading()
+        world = hinge + self._polygon_local @ rotation.T
+        s_poly = (world[:, :2] - hinge[:2]) @ heading
+        cell = VOLUME_CELL_M
+        s_cols = np.arange(s_poly.min(), s_poly.max(), cell) + cell / 2
+        floor, roof = _vertical_extent(s_cols, s_poly, world[:, 2])
+        # grain tops over the columns: the highest covering grain per column
+        grains = self.particle_positions()[self._in_bucket]
+        rel = grains - hinge
+        along = np.rint((rel[:, :2] @ heading - s_cols[0]) / cell).astype(int)
+        across = np.rint((rel @ rotation[:, 1] - self._volume_y[0]) / cell).astype(int)
+        rows = along[:, None] + self._cover_offsets[None, :, 0]
+        cols = across[:, None] + self._cover_offsets[None, :, 1]
+        tops = np.broadcast_to((grains[:, 2] + self.radius_m)[:, None], rows.shape)
+        on_grid = (rows >= 0) & (rows < len(s_cols)) & (cols >= 0) & (cols < len(self._volume_y))
+        top = np.full((len(s_cols), len(self._volume_y)), -np.inf)
+        np.maximum.at(top, (rows[on_grid], cols[on_grid]), tops[on_grid])
+        height = np.clip(np.minimum(top, roof[:, None]) - floor[:, None], 0.0, None)
+        return float(height.sum()) * cell * cell
+
+    @property
     def pile_mass_kg(self) -> float:
         return self._counts[0] * self.particle_mass_kg
 
@@ -545,6 +652,21 @@ def _refresh_static_bodies(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     mujoco.mj_resetData(model, data)
     mujoco.mj_setState(model, data, state, spec)
     mujoco.mj_forward(model, data)
+
+
+def _vertical_extent(
+    s: np.ndarray, s_poly: np.ndarray, z_poly: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest and highest z [m] of the polygon (s_poly, z_poly) over each abscissa ``s``
+    (floor +inf and roof -inf where the polygon does not reach)."""
+    s_a, s_b = s_poly, np.roll(s_poly, -1)
+    z_a, z_b = z_poly, np.roll(z_poly, -1)
+    span = s_b - s_a
+    safe_span = np.where(np.abs(span) < 1e-9, 1e-9, span)
+    t = (s[:, None] - s_a) / safe_span
+    on_edge = (t >= 0.0) & (t <= 1.0) & (np.abs(span) >= 1e-9)
+    z_at = z_a + t * (z_b - z_a)
+    return np.where(on_edge, z_at, np.inf).min(axis=1), np.where(on_edge, z_at, -np.inf).max(axis=1)
 
 
 def _inside_polygon(u: np.ndarray, v: np.ndarray, polygon: np.ndarray) -> np.ndarray:
