@@ -109,7 +109,8 @@ class OperatorStyle:
         hold_deadband_rad: drift left alone during the approach [rad].
         go_again: after a light scoop, back off and go again instead of finishing.
         push_while_curling: keep the throttle on while curling in the pile (otherwise the
-            operator takes its foot off the gas while it curls).
+            operator takes its foot off the gas while it curls, unless the wheels have
+            slipped: then it keeps its gentle push on, or the machine would lose the pile).
         back_off_throttle: reverse throttle when backing off out of the pile before
             raising (0: raise in the pile).
     """
@@ -451,7 +452,7 @@ class PileLoadingOperator:
                 self._eased = True  # the push collapsed: the wheels slip
             throttle = st.ease_throttle if self._eased else st.push_throttle
         if self._action == "curl":
-            return (0.0, st.curl, throttle if st.push_while_curling else 0.0)
+            return (0.0, st.curl, throttle if st.push_while_curling or self._eased else 0.0)
         return ((DIG_LIFT_FRACTION if self._pushing else 1.0) * st.lift, 0.0, throttle)
 
     def _boom_stalled(self) -> bool:
