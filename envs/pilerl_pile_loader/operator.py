@@ -11,11 +11,17 @@ is triggered by something it senses:
    level felt while driving. The operator starts lifting while still pushing, and keeps
    crowding the pile until the boom has risen a little; when the boom stalls against the
    pile (its relief valve opens, or it does not rise), or the bucket floor lags behind the
-   boom's rise, it curls the bucket; when the wheels slip (the drive pressure collapses
-   under a push) it eases off the throttle. Once the boom has risen far enough, the scoop
-   is filled.
-3. ``finish``: curl the bucket back, then raise the boom (both at once for some operators),
-   until the scoop ends.
+   boom's rise, it curls the bucket, with its foot off the gas (people rarely work two
+   controls at once), until the floor has turned a step and the boom is free again (the
+   push has relaxed, or the boom's relief valve has closed); when the wheels slip (the drive
+   pressure collapses under a push) it eases off the throttle. Once the boom has risen far
+   enough, or the bucket is curled back, the scoop is filled.
+3. ``finish``: curl the bucket back, back off out of the pile until the machine rolls back
+   steadily (the drive pressure has settled after the set-off surge), then raise the boom
+   (some operators raise while they curl), until the scoop ends. A scoop that came up
+   *light* (the boom rose out of the pile before the bucket was curled full) is not
+   finished: the operator backs off, lowers the boom, levels the bucket (one control at a
+   time) and drives at the pile again, as often as it takes or until time runs out.
 
 Styles (``OperatorStyle``) make operators differ (pace, valve openings, how far they push
 and lift, how much they curl per lift), and ``sample_style`` draws one per episode. The
@@ -54,6 +60,10 @@ TRIGGER_SENSORS: tuple[str, ...] = ("drive_pressure", "telescope_pressure")
 IMPACT_RISE_RANGES_MPA = {"drive_pressure": (5.0, 9.0), "telescope_pressure": (0.5, 1.0)}
 JUMPY_RISE_FRACTION = 0.35  # a jumpy operator reacts to this fraction of a sensible rise
 
+RELAXED_FRACTION = 0.5  # gas off while curling: the boom is free once p_d < this x the push's peak
+BACK_STEADY_S = 0.5  # backing off ends when the drive pressure has been steady this long [s] ...
+BACK_STEADY_MPA = 1.0  # ... within this band [MPa] (the set-off surge has passed)
+GO_AGAIN_BACK_OFF = 0.3  # least reverse throttle to back off before going again
 NOISE_CORRELATION_S = 0.4  # correlation time of the DART perturbation [s]
 NOISED_CONTROLS = (0, 1)  # boom and bucket (the throttle stays clean)
 LEVEL_RISE_S = 1.5  # how fast the felt driving level follows a rising reading [s]
@@ -97,6 +107,12 @@ class OperatorStyle:
         jumpy: take a small rise of the trigger sensor as the impact (the early-lift mistake).
         hold_gain_per_rad: approach correction of the boom and bucket-floor drift [1/rad].
         hold_deadband_rad: drift left alone during the approach [rad].
+        go_again: after a light scoop, back off and go again instead of finishing.
+        push_while_curling: keep the throttle on while curling in the pile (otherwise the
+            operator takes its foot off the gas while it curls, unless the wheels have
+            slipped: then it keeps its gentle push on, or the machine would lose the pile).
+        back_off_throttle: reverse throttle when backing off out of the pile before
+            raising (0: raise in the pile).
     """
 
     trigger_sensor: str = "drive_pressure"
@@ -122,6 +138,9 @@ class OperatorStyle:
     jumpy: bool = False
     hold_gain_per_rad: float = 5.0
     hold_deadband_rad: float = 0.01
+    go_again: bool = True
+    push_while_curling: bool = False
+    back_off_throttle: float = 0.3
 
     def __post_init__(self) -> None:
         if self.trigger_sensor not in TRIGGER_SENSORS:
@@ -137,6 +156,7 @@ class OperatorStyle:
             "ease_throttle",
             "raise_speed",
             "slip_drop_fraction",
+            "back_off_throttle",
         ):
             _check(name, getattr(self, name), 0.0, 1.0)
         for name in (
@@ -167,9 +187,10 @@ def sample_style(
     trigger_sensor: str = "drive_pressure",
     mistake_rate: float = 0.28,
 ) -> OperatorStyle:
-    """Draw one operator: varied in pace, valve openings and how they fill; with
-    probability ``mistake_rate`` one who makes one of the paper's mistakes (jumpy: lifts
-    early on a false impact cue; timid: curls early and lifts out, under-filling)."""
+    """Draw one operator: varied in pace, valve openings, how they fill and how briskly
+    they back off; with probability ``mistake_rate`` one who makes one of the paper's
+    mistakes (jumpy: lifts early on a false impact cue; timid: curls early and lifts out,
+    under-filling). Every operator goes again after a scoop that came up light."""
     low, high = IMPACT_RISE_RANGES_MPA[trigger_sensor]
     mistake = rng.random() < mistake_rate
     kind = rng.choice(("jumpy", "timid")) if mistake else "none"
@@ -189,6 +210,7 @@ def sample_style(
         finish_overlap=bool(rng.random() < 0.3),
         hesitant=bool(rng.random() < 0.15),
         jumpy=kind == "jumpy",
+        back_off_throttle=float(rng.uniform(0.2, 0.4)),
     )
 
 
@@ -292,6 +314,12 @@ class PileLoadingOperator:
         self.last_label = np.zeros(3, dtype=np.float32)
         self._rest_boom: float | None = None  # boom angle at rest, felt at the start [rad]
         self._rest_pitch = 0.0  # boom + bucket angle with the floor level [rad]
+        self._noise = np.zeros(3)
+        self._noise_rng = np.random.default_rng(self.noise_seed)
+        self._start_attempt()
+
+    def _start_attempt(self) -> None:
+        """Forget what was felt in the last scoop: drive at the pile (again)."""
         self._felt_level: float | None = None  # trigger reading felt while driving [MPa]
         self._above_s = 0.0  # how long the trigger has been above the impact level [s]
         self._impact_reading = 0.0
@@ -300,11 +328,14 @@ class PileLoadingOperator:
         self._pushing = False  # in filling: still crowding the pile with the throttle
         self._curl_from = 0.0  # bucket-floor pitch when the curl began [rad]
         self._boom_trace: deque[float] = deque(maxlen=64)  # boom angles while lifting
+        self._drive_trace: deque[float] = deque(maxlen=64)  # drive pressures backing off
         self._push_peak = 0.0
         self._eased = False
+        self._light = False  # finishing: the scoop came up light, go again after backing off
         self._curled_back = False
-        self._noise = np.zeros(3)
-        self._noise_rng = np.random.default_rng(self.noise_seed)
+        self._set_off = False  # backing off: the machine has started to roll back
+        self._backed_off = False
+        self._posture_set = False  # approach: boom at rest and bucket level before driving
 
     # ------------------------------------------------------------------ acting
     def act(self, sensors: Mapping[str, object]) -> np.ndarray:
@@ -336,6 +367,7 @@ class PileLoadingOperator:
             curled = reading["bucket_angle"] >= st.finish_bucket_angle_rad
             if risen >= st.fill_lift_rad or curled:
                 self.phase = "finish"
+                self._light = st.go_again and not curled
 
     def _felt_impact(self, value: float) -> bool:
         """Impact: the trigger reading stays well above the level felt while driving.
@@ -364,6 +396,12 @@ class PileLoadingOperator:
         st = self.style
         boom_drift = reading["boom_angle"] - self._rest_boom
         pitch_drift = reading["boom_angle"] + reading["bucket_angle"] - self._rest_pitch
+        if not self._posture_set:  # after a light scoop: lower the boom, then level the bucket
+            if abs(boom_drift) > st.hold_deadband_rad:
+                return (self._hold(boom_drift), 0.0, 0.0)
+            if abs(pitch_drift) > st.hold_deadband_rad:
+                return (0.0, self._hold(pitch_drift), 0.0)
+            self._posture_set = True
         return (self._hold(boom_drift), self._hold(pitch_drift), st.approach_throttle)
 
     def _hold(self, drift_rad: float) -> float:
@@ -398,6 +436,8 @@ class PileLoadingOperator:
         else:  # curling: on until the floor has turned and the boom is free again
             turned = pitch >= max(self._curl_from + st.curl_step_rad, wanted + st.curl_band_rad)
             boom_held = reading["boom_pressure"] >= st.boom_stall_mpa
+            if not st.push_while_curling and drive < RELAXED_FRACTION * self._push_peak:
+                boom_held = False  # the gas is off and the push has relaxed: the boom is free
             bucket_stalled = reading["bucket_pressure"] >= st.bucket_stall_mpa
             if (turned and not boom_held) or bucket_stalled:
                 self._action = "lift"
@@ -412,7 +452,7 @@ class PileLoadingOperator:
                 self._eased = True  # the push collapsed: the wheels slip
             throttle = st.ease_throttle if self._eased else st.push_throttle
         if self._action == "curl":
-            return (0.0, st.curl, throttle)
+            return (0.0, st.curl, throttle if st.push_while_curling or self._eased else 0.0)
         return ((DIG_LIFT_FRACTION if self._pushing else 1.0) * st.lift, 0.0, throttle)
 
     def _boom_stalled(self) -> bool:
@@ -425,14 +465,39 @@ class PileLoadingOperator:
         return trace[-1] - trace[-window] < STALL_RISE_RAD
 
     def _finish(self, reading: dict[str, float]) -> tuple[float, float, float]:
-        """Curl back until the bucket reaches the end angle, then raise (some operators
-        raise while they curl)."""
+        """Curl back until the bucket reaches the end angle, back off until the machine
+        rolls back steadily, then raise (some operators raise while they curl). A scoop
+        that came up light (the boom rose out of the pile before the bucket was curled
+        full) is not finished: back off and go again."""
         st = self.style
+        if self._light:
+            if self._backing_off(reading):
+                return (0.0, 0.0, -max(st.back_off_throttle, GO_AGAIN_BACK_OFF))
+            self.phase = "approach"
+            self._start_attempt()
+            return self._approach(reading)
         if reading["bucket_angle"] >= st.finish_bucket_angle_rad:
             self._curled_back = True  # once curled back, leave it (a loaded bucket sags)
         curl = 0.0 if self._curled_back else 1.0
+        if self._curled_back and st.back_off_throttle > 0 and self._backing_off(reading):
+            return (0.0, 0.0, -st.back_off_throttle)
         raise_boom = st.raise_speed if (self._curled_back or st.finish_overlap) else 0.0
         return (raise_boom, curl, 0.0)
+
+    def _backing_off(self, reading: dict[str, float]) -> bool:
+        """Still backing off: until the machine has started to roll back (the pump has
+        reversed) and the drive pressure has stayed steady for ``BACK_STEADY_S`` (the
+        set-off surge has passed and the bucket is free of the pile)."""
+        if self._backed_off:
+            return False
+        self._set_off = self._set_off or reading["pump_angle"] < 0.0
+        if self._set_off:
+            self._drive_trace.append(reading["drive_pressure"])
+            window = max(2, round(BACK_STEADY_S / self.dt) + 1)
+            recent = list(self._drive_trace)[-window:]
+            steady = len(recent) >= window and max(recent) - min(recent) <= BACK_STEADY_MPA
+            self._backed_off = steady
+        return not self._backed_off
 
     def _executed(self, label: np.ndarray) -> np.ndarray:
         """The command the machine gets: the label, plus the DART perturbation if on."""
