@@ -211,6 +211,7 @@ class Machine:
             [self.boom_actuator, self.bucket_actuator, self.telescope_actuator, self.drive_actuator]
         )
         self._velocity = np.empty(6)  # mj_objectVelocity's output
+        self._max_pump_flow_m3_s = params.max_pump_flow_m3_s  # a property: computed once
         # per cylinder: (tank pressure, tank pressure x annulus area, piston area), the
         # terms of ``MachineParameters.piston_pressure_mpa``
         tank = params.tank_pressure_mpa * MPA
@@ -267,7 +268,7 @@ class Machine:
         ctrl[self.boom_actuator] = boom * p.boom_max_speed_rad_s * s
         ctrl[self.bucket_actuator] = bucket * p.bucket_max_speed_rad_s * s
         ctrl[self.telescope_actuator] = p.telescope_extension_m
-        ctrl[self.drive_actuator] = pump_fraction * p.max_pump_flow_m3_s * s
+        ctrl[self.drive_actuator] = pump_fraction * self._max_pump_flow_m3_s * s
 
     def limit_cylinder_windup(self) -> None:
         """Keep each cylinder's integrated flow within the oil-column deflection of its joint.
