@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import time
 from collections.abc import Sequence
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -79,24 +78,18 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     allow_rate_below_floor()
     reference = max(args.rates)
-    runs: dict[float, list[dict[str, float]]] = {}
-    walls: dict[float, float] = {}
-    for rate in args.rates:
-        started = time.perf_counter()
-        runs[rate] = [
-            scoop(condition, seed, rate)
-            for condition in args.conditions
-            for seed in range(args.seeds)
-        ]
-        walls[rate] = time.perf_counter() - started
+    runs = {
+        rate: [scoop(c, seed, rate) for c in args.conditions for seed in range(args.seeds)]
+        for rate in args.rates
+    }
     keys = list(runs[reference][0])
     n = len(runs[reference])
     print(
         f"{n} expert scoops ({args.seeds} seeds x {args.conditions}); reference "
         f"{reference:g} Hz. Each cell: mean over scoops [mean |difference| from the reference]"
     )
-    print("| physics Hz | " + " | ".join(keys) + " | same success | wall s |")
-    print("|---:|" + "---:|" * len(keys) + "---:|---:|")
+    print("| physics Hz | " + " | ".join(keys) + " | same success |")
+    print("|---:|" + "---:|" * len(keys) + "---:|")
     for rate in args.rates:
         cells = []
         for key in keys:
@@ -105,7 +98,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             cells.append(f"{values.mean():.3f} [{np.abs(values - ref).mean():.3f}]")
         pairs = zip(runs[rate], runs[reference], strict=True)
         same = sum(r["success"] == s["success"] for r, s in pairs)
-        print(f"| {rate:g} | " + " | ".join(cells) + f" | {same}/{n} | {walls[rate]:.1f} |")
+        print(f"| {rate:g} | " + " | ".join(cells) + f" | {same}/{n} |")
 
 
 if __name__ == "__main__":
