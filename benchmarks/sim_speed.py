@@ -3,17 +3,18 @@
 For each soil model, in one run and with one intra-op thread per process:
 
 - ``raw mj_step``: ``mujoco.mj_step`` alone on the same compiled model, the same number of
-  physics steps (no soil, no Python per step): the ceiling.
+  physics steps (no soil, no Python per step), from the same reset state every round with
+  the loop's command held: the ceiling.
 - ``simulator loop``: the env's own ``step`` (physics + soil model + sensors), no wrappers.
 - ``gymnasium``: ``gymnasium.make`` with its default wrappers.
 - ``torchrl x1``: ``make_torchrl_env(...)`` (one simulator, batch ``[]``) driven by
   ``rollout`` with a plain callable fixed-action policy.
 - ``torchrl one process xN``: N simulators in one TorchRL env (``num_envs=N``).
 - ``ParallelEnv P procs xK``: TorchRL's ``ParallelEnv``, P worker processes with K
-  simulators each: as TorchRL builds it (shared-memory buffers; the parent process
-  spin-polls the workers' done flags, a busy loop that holds a core), and with
-  ``use_buffers=False`` (the parent blocks on the workers' pipes), which
-  ``make_torchrl_env(workers=P)`` builds.
+  simulators each (``make_torchrl_env(workers=P)``): with TorchRL's shared-memory buffers
+  (its default: the parent process spin-polls the workers' done flags) and with
+  ``use_buffers=False`` (the parent blocks on the workers' pipes and unpickles each
+  step's tensordicts).
 
 The driving is the same for every row: throttle 0.5 with a slow boom/bucket sweep, so the
 bucket spends most of the time in the pile; episodes reset when they end. The rows are
@@ -98,8 +99,16 @@ def rows_for(soil: str, steps: int, batch: int, workers: int) -> list[Row]:
     loop(env.step)  # warm up
     model, data = raw.model, raw.data
     n_physics = steps * raw.frame_skip
+
+    def raw_steps() -> None:
+        # the same start every round (mj_step's cost depends on the state: measured up to
+        # 1.5x between the states other rows left behind), driven by the loop's command
+        env.reset(seed=0)
+        raw.machine.command(*ACTION.tolist())
+        mujoco.mj_step(model, data, nstep=n_physics)
+
     rows = [
-        Row("raw mj_step", lambda: mujoco.mj_step(model, data, nstep=n_physics), steps * dt),
+        Row("raw mj_step", raw_steps, steps * dt),
         Row("simulator loop", lambda: loop(raw.step), steps * dt),
         Row("gymnasium", lambda: loop(env.step), steps * dt, close=env.close),
     ]
@@ -125,22 +134,22 @@ def rows_for(soil: str, steps: int, batch: int, workers: int) -> list[Row]:
     )
     rows.append(
         torchrl_row(
-            f"ParallelEnv {workers} procs x1, TorchRL default (parent spins)",
-            make_torchrl_env(**common, workers=workers, use_buffers=True),
+            f"ParallelEnv {workers} procs x1, shared buffers (parent spins)",
+            make_torchrl_env(**common, workers=workers),
             workers,
         )
     )
     rows.append(
         torchrl_row(
-            f"ParallelEnv {workers} procs x1, make_torchrl_env(workers={workers})",
-            make_torchrl_env(**common, workers=workers),
+            f"ParallelEnv {workers} procs x1, pipes (use_buffers=False)",
+            make_torchrl_env(**common, workers=workers, use_buffers=False),
             workers,
         )
     )
     per_worker = max(batch // workers, 1)
     rows.append(
         torchrl_row(
-            f"ParallelEnv {workers} procs x{per_worker}, make_torchrl_env(workers={workers})",
+            f"ParallelEnv {workers} procs x{per_worker}, shared buffers",
             make_torchrl_env(**common, workers=workers, num_envs=per_worker),
             workers * per_worker,
         )

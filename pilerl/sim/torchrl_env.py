@@ -211,7 +211,7 @@ def make_torchrl_env(
     workers: int = 1,
     device: str | None = None,
     seed: int | None = None,
-    use_buffers: bool = False,
+    use_buffers: bool = True,
     **kwargs,
 ) -> EnvBase:
     """A TorchRL env around simulator ``name``; ``kwargs`` go to the simulator.
@@ -221,12 +221,11 @@ def make_torchrl_env(
         workers: ``> 1``: a TorchRL ``ParallelEnv`` of ``workers`` processes, each stepping
             ``num_envs`` simulators (batch ``[workers]`` or ``[workers, num_envs]``); the
             sub-envs are seeded ``seed``, ``seed + 1``, ... in worker order when built.
-        use_buffers: (``workers > 1``) TorchRL's shared-memory buffers. With them the
-            parent process spin-polls the workers' done flags at every step, a busy loop
-            that holds a whole core: on a machine with no core to spare the workers then
-            share what is left and 2 workers ran slower than one process (measured, see
-            docs/performance.md). Off: the parent blocks on the workers' pipes, and a
-            step's few floats travel pickled.
+        use_buffers: (``workers > 1``) TorchRL's shared-memory buffers (its default). The
+            parent then spin-polls the workers' done flags at every step, a busy loop;
+            without them it blocks on the workers' pipes but pickles every step's
+            tensordicts, which cost it as much CPU (measured, docs/performance.md). Either
+            way a lockstep env needs a core for its parent beside the workers'.
     """
     if num_envs < 1:
         raise ValueError(f"make_torchrl_env: num_envs must be >= 1, got {num_envs}")

@@ -133,7 +133,7 @@ def test_the_pile_loaders_winter_group_is_a_to_d_and_pools_in_summaries():
 
 
 def test_worker_processes_step_the_simulators_one_process_would():
-    """``make_torchrl_env(workers=2)`` (a ``ParallelEnv`` whose parent blocks on pipes)
+    """``make_torchrl_env(workers=2)`` (a TorchRL ``ParallelEnv``)
     seeds its sub-envs in worker order: the same episodes as one process's batch."""
 
     def push(td):
