@@ -1,29 +1,40 @@
 """Simulator speed: control steps/s and simulated seconds per wall second, per soil model.
 
-For each soil model, in one run and with one intra-op thread:
+For each soil model, in one run and with one intra-op thread per process:
 
 - ``raw mj_step``: ``mujoco.mj_step`` alone on the same compiled model, the same number of
-  physics steps (no soil, no Python per step): the ceiling.
+  physics steps (no soil, no Python per step), from the same reset state every round with
+  the loop's command held: the ceiling.
 - ``simulator loop``: the env's own ``step`` (physics + soil model + sensors), no wrappers.
 - ``gymnasium``: ``gymnasium.make`` with its default wrappers.
-- ``torchrl``: TorchRL ``GymEnv`` (``make_torchrl_env``) driven by ``rollout`` with a
-  plain callable fixed-action policy.
+- ``torchrl x1``: ``make_torchrl_env(...)`` (one simulator, batch ``[]``) driven by
+  ``rollout`` with a plain callable fixed-action policy.
 - ``torchrl one process xN``: N simulators in one TorchRL env (``num_envs=N``).
-- ``torchrl ParallelEnv P procs xK``: P worker processes (one per core), K simulators each.
+- ``ParallelEnv P procs xK``: TorchRL's ``ParallelEnv``, P worker processes with K
+  simulators each (``make_torchrl_env(workers=P)``): with TorchRL's shared-memory buffers
+  (its default: the parent process spin-polls the workers' done flags) and with
+  ``use_buffers=False`` (the parent blocks on the workers' pipes and unpickles each
+  step's tensordicts).
 
 The driving is the same for every row: throttle 0.5 with a slow boom/bucket sweep, so the
-bucket spends most of the time in the pile; episodes reset when they end.
+bucket spends most of the time in the pile; episodes reset when they end. The rows are
+timed in turn, ``--repeats`` rounds, and each row reports its median: on a shared machine
+the load drifts, and rounds spread it over the rows alike. The multi-process rows measure
+scaling only where the machine has idle cores: the script prints the cores and the load
+average so a reader can tell (rerun it on a quiet machine for the scaling figures).
 
-    python benchmarks/sim_speed.py                    # all soil models
-    python benchmarks/sim_speed.py --soil heightfield --seconds 60
+    python benchmarks/sim_speed.py --soil heightfield          # the default soil model
+    python benchmarks/sim_speed.py --soil heightfield --seconds 60 --repeats 5
+    python benchmarks/sim_speed.py                              # all soil models
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
 import os
+import statistics
 import time
+from collections.abc import Callable
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -32,12 +43,12 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 from pilerl_pile_loader.soil import SOIL_MODELS  # noqa: E402
-from torchrl.envs import ParallelEnv  # noqa: E402
 
 import pilerl  # noqa: E402,F401
 from pilerl.sim import make_torchrl_env  # noqa: E402
 
 ACTION = np.array([0.15, 0.1, 0.5], dtype=np.float32)
+CONTROL_DT_S = 0.05  # the default 20 Hz control
 
 
 def fixed_policy():
@@ -50,25 +61,35 @@ def fixed_policy():
     return policy
 
 
-def _worker_env(soil: str, num_envs: int):
-    torch.set_num_threads(1)
-    return make_torchrl_env(soil=soil, sensor_noise=0.0, num_envs=num_envs)
+class Row:
+    """One measured path: ``run()`` advances ``simulated_s`` simulated seconds."""
+
+    def __init__(self, name: str, run: Callable[[], None], simulated_s: float, close=None):
+        self.name, self.run, self.simulated_s = name, run, simulated_s
+        self.close = close or (lambda: None)
+        self.walls: list[float] = []
+
+    def time_once(self) -> None:
+        start = time.perf_counter()
+        self.run()
+        self.walls.append(time.perf_counter() - start)
+
+    @property
+    def wall_s(self) -> float:
+        return statistics.median(self.walls)
+
+    @property
+    def real_time_factor(self) -> float:
+        return self.simulated_s / self.wall_s
 
 
-def timed(fn) -> float:
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start
-
-
-def bench_soil(soil: str, steps: int, batch: int) -> list[tuple[str, float, float, int]]:
-    """Rows (name, wall seconds, simulated seconds, envs)."""
-    rows = []
+def rows_for(soil: str, steps: int, batch: int, workers: int) -> list[Row]:
+    """The rows of one soil model, built and warmed up (start-up is not timed)."""
     env = gym.make("pilerl/PileLoading-v0", soil=soil, sensor_noise=0.0)
     raw = env.unwrapped
     dt = raw.dt
 
-    def loop(stepper):
+    def loop(stepper) -> None:
         env.reset(seed=0)
         for _ in range(steps):
             *_, terminated, truncated, _ = stepper(ACTION)
@@ -76,56 +97,82 @@ def bench_soil(soil: str, steps: int, batch: int) -> list[tuple[str, float, floa
                 env.reset()
 
     loop(env.step)  # warm up
-    rows.append(("simulator loop", timed(lambda: loop(raw.step)), steps * dt, 1))
-    rows.append(("gymnasium", timed(lambda: loop(env.step)), steps * dt, 1))
-
     model, data = raw.model, raw.data
     n_physics = steps * raw.frame_skip
-    rows.insert(
-        0,
-        ("raw mj_step", timed(lambda: mujoco.mj_step(model, data, nstep=n_physics)), steps * dt, 1),
-    )
 
+    def raw_steps() -> None:
+        # the same start every round (mj_step's cost depends on the state: measured up to
+        # 1.5x between the states other rows left behind), driven by the loop's command
+        env.reset(seed=0)
+        raw.machine.command(*ACTION.tolist())
+        mujoco.mj_step(model, data, nstep=n_physics)
+
+    rows = [
+        Row("raw mj_step", raw_steps, steps * dt),
+        Row("simulator loop", lambda: loop(raw.step), steps * dt),
+        Row("gymnasium", lambda: loop(env.step), steps * dt, close=env.close),
+    ]
     policy = fixed_policy()
-    tenv = make_torchrl_env(soil=soil, sensor_noise=0.0, seed=0)
-    tenv.rollout(5, policy)
+
+    def torchrl_row(name: str, tenv, n_envs: int) -> Row:
+        tenv.set_seed(0)
+        tenv.rollout(3, policy)  # warm up (and, for worker processes, wait until started)
+        steps_each = max(steps // n_envs, 1)
+        return Row(
+            name,
+            lambda: tenv.rollout(steps_each, policy, break_when_any_done=False),
+            steps_each * dt * n_envs,
+            close=tenv.close,
+        )
+
+    common = {"soil": soil, "sensor_noise": 0.0}
+    rows.append(torchrl_row("torchrl x1", make_torchrl_env(**common), 1))
     rows.append(
-        (
-            "torchrl",
-            timed(lambda: tenv.rollout(steps, policy, break_when_any_done=False)),
-            steps * dt,
-            1,
+        torchrl_row(
+            f"torchrl one process x{batch}", make_torchrl_env(**common, num_envs=batch), batch
         )
     )
-    tenv.close()
-
-    def batched_row(name: str, benv, n_envs: int) -> None:
-        benv.set_seed(0)
-        benv.rollout(3, policy)
-        steps_each = max(steps // n_envs, 1)
-        wall = timed(lambda: benv.rollout(steps_each, policy, break_when_any_done=False))
-        rows.append((name, wall, steps_each * dt * n_envs, n_envs))
-        benv.close()
-
-    batched_row(
-        f"torchrl one process x{batch}",
-        make_torchrl_env(soil=soil, sensor_noise=0.0, num_envs=batch),
-        batch,
+    rows.append(
+        torchrl_row(
+            f"ParallelEnv {workers} procs x1, shared buffers (parent spins)",
+            make_torchrl_env(**common, workers=workers),
+            workers,
+        )
     )
-    workers = os.cpu_count() or 2
-    batched_row(
-        f"torchrl ParallelEnv {workers} procs x1",
-        ParallelEnv(workers, functools.partial(_worker_env, soil, 1)),
-        workers,
+    rows.append(
+        torchrl_row(
+            f"ParallelEnv {workers} procs x1, pipes (use_buffers=False)",
+            make_torchrl_env(**common, workers=workers, use_buffers=False),
+            workers,
+        )
     )
     per_worker = max(batch // workers, 1)
-    batched_row(
-        f"torchrl ParallelEnv {workers} procs x{per_worker}",
-        ParallelEnv(workers, functools.partial(_worker_env, soil, per_worker)),
-        workers * per_worker,
+    rows.append(
+        torchrl_row(
+            f"ParallelEnv {workers} procs x{per_worker}, shared buffers",
+            make_torchrl_env(**common, workers=workers, num_envs=per_worker),
+            workers * per_worker,
+        )
     )
-    env.close()
     return rows
+
+
+def print_table(soil: str, rows: list[Row]) -> None:
+    by_name = {row.name: row for row in rows}
+    raw, loop, one = by_name["raw mj_step"], by_name["simulator loop"], by_name["torchrl x1"]
+    print(f"\n### soil = {soil}\n")
+    print(
+        "| path | control steps/s | sim s per wall s | vs raw mj_step | vs simulator loop "
+        "| vs torchrl x1 |"
+    )
+    print("|---|---:|---:|---:|---:|---:|")
+    for row in rows:
+        rate = row.real_time_factor
+        print(
+            f"| {row.name} | {rate / CONTROL_DT_S:,.0f} | {rate:.1f} | "
+            f"{rate / raw.real_time_factor:.2f} | {rate / loop.real_time_factor:.2f} | "
+            f"{rate / one.real_time_factor:.2f} |"
+        )
 
 
 def main() -> None:
@@ -133,26 +180,33 @@ def main() -> None:
     parser.add_argument("--soil", choices=sorted(SOIL_MODELS), action="append")
     parser.add_argument("--seconds", type=float, default=40.0, help="simulated seconds per row")
     parser.add_argument("--batch", type=int, default=4, help="simulators in the batched rows")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 2)
+    parser.add_argument("--repeats", type=int, default=3, help="rounds; each row's median")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    steps = int(args.seconds / 0.05)
+    steps = int(args.seconds / CONTROL_DT_S)
+    load_before = os.getloadavg()
     print(
         f"threads: torch={torch.get_num_threads()}, OMP={os.environ['OMP_NUM_THREADS']}; "
-        f"{steps} control steps at 20 Hz (500 Hz physics) per row; cores={os.cpu_count()}"
+        f"{steps} control steps at 20 Hz (500 Hz physics) per row, median of {args.repeats} "
+        f"rounds; cores={os.cpu_count()}, load average before: "
+        + ", ".join(f"{v:.1f}" for v in load_before)
     )
     for soil in args.soil or sorted(SOIL_MODELS):
-        rows = bench_soil(soil, steps, args.batch)
-        baseline = {name: wall / sim for name, wall, sim, _ in rows}
-        print(f"\n### soil = {soil}\n")
-        print("| path | control steps/s | sim s per wall s | vs raw mj_step | vs simulator loop |")
-        print("|---|---:|---:|---:|---:|")
-        for name, wall, sim, _ in rows:
-            rate = sim / wall
-            print(
-                f"| {name} | {sim / 0.05 / wall:,.0f} | {rate:.1f} | "
-                f"{baseline['raw mj_step'] / (wall / sim):.2f} | "
-                f"{baseline['simulator loop'] / (wall / sim):.2f} |"
-            )
+        rows = rows_for(soil, steps, args.batch, args.workers)
+        for _ in range(args.repeats):
+            for row in rows:
+                row.time_once()
+        for row in rows:
+            row.close()
+        print_table(soil, rows)
+    load_after = os.getloadavg()
+    print(
+        "\nload average after: " + ", ".join(f"{v:.1f}" for v in load_after) + ". "
+        f"The ParallelEnv rows show scaling only if {args.workers} cores were idle "
+        f"(load average well below {os.cpu_count()} - {args.workers}); on a loaded machine "
+        "they measure the share of the cores this run got."
+    )
 
 
 if __name__ == "__main__":

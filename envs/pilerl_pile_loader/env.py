@@ -186,8 +186,11 @@ class PileLoadingEnv(gym.Env):
         self._low = np.array([s.low for s in SENSORS])
         self._high = np.array([s.high for s in SENSORS])
         self._renderer: mujoco.Renderer | None = None
-        self._valves = np.zeros(2)
-        self._pump_fraction = 0.0
+        self._boom_valve = self._bucket_valve = self._pump_fraction = 0.0
+        # the valves' and the pump's first-order lag over a chunk of physics steps, by chunk
+        # length (a handful of lengths recur: computed once, not at every chunk)
+        self._lag_blends: dict[int, tuple[float, float]] = {}
+        self._qpos, self._qvel = self.data.qpos, self.data.qvel  # views: see Machine
         self._elapsed_s = 0.0
         self._episode_over = True  # no episode until reset(): step() refuses
 
@@ -203,8 +206,7 @@ class PileLoadingEnv(gym.Env):
         self._set_start_pose(distance, angle, aim_y)
         self.soil.reset(rng)
         self._delay.reset(rng)
-        self._valves[:] = 0.0
-        self._pump_fraction = 0.0
+        self._boom_valve = self._bucket_valve = self._pump_fraction = 0.0
         self._elapsed_s = 0.0
         self._episode_over = False
         self._energy_j = 0.0
@@ -234,9 +236,9 @@ class PileLoadingEnv(gym.Env):
 
         fill = self.soil.fill_fraction
         rated_kg = self.soil.bucket.rated_volume_m3 * self.condition.material.density_kg_m3
+        pitch, hinge_height = self.machine.bucket_pitch(), self._hinge_height()
         scoop_finished = (
-            self.machine.bucket_pitch() >= self.task.curled_pitch_rad
-            and self._hinge_height() >= self.task.raised_hinge_height_m
+            pitch >= self.task.curled_pitch_rad and hinge_height >= self.task.raised_hinge_height_m
         )
         tipped = self.machine.frame_tilt() > self.task.max_frame_tilt_rad
         succeeded = scoop_finished and fill >= self.task.success_fill_fraction
@@ -252,7 +254,13 @@ class PileLoadingEnv(gym.Env):
         terminated = scoop_finished or tipped
         truncated = (not terminated) and self._elapsed_s >= self.task.max_episode_seconds - 1e-9
         self._episode_over = terminated or truncated
-        info = self._info(scoop_finished=scoop_finished, tipped=tipped, parts=parts)
+        info = self._info(
+            scoop_finished=scoop_finished,
+            tipped=tipped,
+            parts=parts,
+            bucket_pitch_rad=pitch,
+            hinge_height_m=hinge_height,
+        )
         return self._observation(), float(sum(parts.values())), terminated, truncated, info
 
     def render(self):
@@ -300,28 +308,43 @@ class PileLoadingEnv(gym.Env):
         Without ``command`` the valves and pump keep their state (used to settle at reset).
         """
         m, d, machine = self.model, self.data, self.machine
-        hydraulics = self.condition.hydraulics
+        timestep = m.opt.timestep
         chunks = self._chunks if n_steps == self.frame_skip else _split(n_steps, self._chunks)
+        if command is not None:
+            boom, bucket, pump = (float(c) for c in command)
         for steps in chunks:
-            chunk_dt = steps * m.opt.timestep
+            steps = int(steps)
+            chunk_dt = steps * timestep
             if command is not None:
-                valve_blend = 1.0 - math.exp(-chunk_dt / hydraulics.valve_lag_s)
-                pump_blend = 1.0 - math.exp(-chunk_dt / hydraulics.pump_lag_s)
-                self._valves += valve_blend * (command[:2] - self._valves)
-                self._pump_fraction += pump_blend * (command[2] - self._pump_fraction)
-            machine.command(self._valves[0], self._valves[1], self._pump_fraction)
-            mujoco.mj_step(m, d, nstep=int(steps))
-            self._steps_since_soil += int(steps)
+                valve_blend, pump_blend = self._lag_blend(steps, chunk_dt)
+                self._boom_valve += valve_blend * (boom - self._boom_valve)
+                self._bucket_valve += valve_blend * (bucket - self._bucket_valve)
+                self._pump_fraction += pump_blend * (pump - self._pump_fraction)
+            machine.command(self._boom_valve, self._bucket_valve, self._pump_fraction)
+            mujoco.mj_step(m, d, nstep=steps)
+            self._steps_since_soil += steps
             if self._steps_since_soil >= self._soil_period_steps:
-                self.soil.update(self._steps_since_soil * m.opt.timestep)
+                self.soil.update(self._steps_since_soil * timestep)
                 self._steps_since_soil = 0
             self._energy_j += machine.hydraulic_power_w() * chunk_dt
         machine.limit_cylinder_windup()
-        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+        if not (np.isfinite(self._qpos).all() and np.isfinite(self._qvel).all()):
             raise RuntimeError(
                 f"simulation diverged (non-finite state) at t={self._elapsed_s:.3f} s; "
                 "check the condition overrides and machine parameters"
             )
+
+    def _lag_blend(self, steps: int, chunk_dt: float) -> tuple[float, float]:
+        """(valve, pump) fraction of the way to the command covered in ``chunk_dt`` [s]."""
+        blends = self._lag_blends.get(steps)
+        if blends is None:
+            hydraulics = self.condition.hydraulics
+            blends = (
+                1.0 - math.exp(-chunk_dt / hydraulics.valve_lag_s),
+                1.0 - math.exp(-chunk_dt / hydraulics.pump_lag_s),
+            )
+            self._lag_blends[steps] = blends
+        return blends
 
     def _hinge_height(self) -> float:
         return float(self.data.xpos[self.machine.bucket_body][2])
@@ -344,9 +367,23 @@ class PileLoadingEnv(gym.Env):
         values = np.clip(values, self._low, self._high).astype(np.float32)
         return {s.name: values[i : i + 1] for i, s in enumerate(SENSORS)}
 
-    def _info(self, *, scoop_finished: bool, tipped: bool, parts: dict[str, float] | None) -> dict:
+    def _info(
+        self,
+        *,
+        scoop_finished: bool,
+        tipped: bool,
+        parts: dict[str, float] | None,
+        bucket_pitch_rad: float | None = None,
+        hinge_height_m: float | None = None,
+    ) -> dict:
+        """The step's ``info``; ``bucket_pitch_rad`` and ``hinge_height_m`` if already read."""
         soil, mc = self.soil, self.machine
         fill = soil.fill_fraction
+        forward_speed = mc.forward_speed()
+        if bucket_pitch_rad is None:
+            bucket_pitch_rad = mc.bucket_pitch()
+        if hinge_height_m is None:
+            hinge_height_m = self._hinge_height()
         info = {
             "fill_fraction": fill,
             "success": bool(scoop_finished and fill >= self.task.success_fill_fraction),
@@ -356,10 +393,10 @@ class PileLoadingEnv(gym.Env):
             "spilled_kg": soil.spilled_kg,
             "pile_mass_kg": soil.pile_mass_kg,
             "cutting_depth_m": soil.cutting_depth_m(),
-            "wheel_slip_m_s": mc.wheel_slip_speed(),
-            "forward_speed_m_s": mc.forward_speed(),
-            "bucket_pitch_rad": mc.bucket_pitch(),
-            "bucket_hinge_height_m": self._hinge_height(),
+            "wheel_slip_m_s": mc.wheel_slip_speed(forward_speed),
+            "forward_speed_m_s": forward_speed,
+            "bucket_pitch_rad": bucket_pitch_rad,
+            "bucket_hinge_height_m": hinge_height_m,
             "hydraulic_energy_kj": self._energy_j / 1e3,
             "elapsed_s": self._elapsed_s,
             **self._start,

@@ -202,6 +202,23 @@ class Machine:
         self.bucket_body = model.body("bucket").id
         self.cutting_edge_site = model.site("cutting_edge").id
         self._write_hydraulics()
+        # MuJoCo's array attributes build a new NumPy view at every access (~1 us each, a
+        # few dozen per control step): keep the views, they share the model's memory
+        self._qpos, self._qvel, self._act = data.qpos, data.qvel, data.act
+        self._ctrl, self._xmat = data.ctrl, data.xmat
+        self._actuator_force, self._actuator_velocity = data.actuator_force, data.actuator_velocity
+        self._own_actuators = np.array(
+            [self.boom_actuator, self.bucket_actuator, self.telescope_actuator, self.drive_actuator]
+        )
+        self._velocity = np.empty(6)  # mj_objectVelocity's output
+        self._max_pump_flow_m3_s = params.max_pump_flow_m3_s  # a property: computed once
+        # per cylinder: (tank pressure, tank pressure x annulus area, piston area), the
+        # terms of ``MachineParameters.piston_pressure_mpa``
+        tank = params.tank_pressure_mpa * MPA
+        self._chambers = {
+            part: (tank, tank * params.annulus_area_m2(part), params.piston_area_m2(part))
+            for part in ("boom", "bucket", "telescope")
+        }
 
     # ------------------------------------------------------------------ set-up
     def _write_hydraulics(self) -> None:
@@ -247,11 +264,11 @@ class Machine:
                 flow goes to the two sides in parallel, through each side's front and rear
                 wheel motors in series.
         """
-        p, d, s = self.params, self.data, self.speed_scale
-        d.ctrl[self.boom_actuator] = boom * p.boom_max_speed_rad_s * s
-        d.ctrl[self.bucket_actuator] = bucket * p.bucket_max_speed_rad_s * s
-        d.ctrl[self.telescope_actuator] = p.telescope_extension_m
-        d.ctrl[self.drive_actuator] = pump_fraction * p.max_pump_flow_m3_s * s
+        p, ctrl, s = self.params, self._ctrl, self.speed_scale
+        ctrl[self.boom_actuator] = boom * p.boom_max_speed_rad_s * s
+        ctrl[self.bucket_actuator] = bucket * p.bucket_max_speed_rad_s * s
+        ctrl[self.telescope_actuator] = p.telescope_extension_m
+        ctrl[self.drive_actuator] = pump_fraction * self._max_pump_flow_m3_s * s
 
     def limit_cylinder_windup(self) -> None:
         """Keep each cylinder's integrated flow within the oil-column deflection of its joint.
@@ -259,47 +276,50 @@ class Machine:
         When a cylinder stalls at relief pressure the oil goes over the relief valve; the
         cylinder must not "remember" the flow and jump once the load drops.
         """
-        m, d = self.model, self.data
+        m, act_state, qpos = self.model, self._act, self._qpos
+        forcerange, gainprm, actadr = m.actuator_forcerange, m.actuator_gainprm, m.actuator_actadr
         for act, q in ((self.boom_actuator, self._boom_q), (self.bucket_actuator, self._bucket_q)):
-            slack = m.actuator_forcerange[act, 1] / m.actuator_gainprm[act, 0]
-            adr = m.actuator_actadr[act]
-            d.act[adr] = np.clip(d.act[adr], d.qpos[q] - slack, d.qpos[q] + slack)
+            slack = float(forcerange[act, 1] / gainprm[act, 0])
+            adr = int(actadr[act])
+            position = float(qpos[q])
+            act_state[adr] = min(max(float(act_state[adr]), position - slack), position + slack)
 
     # ------------------------------------------------------------------ readings
     def boom_angle(self) -> float:
         """theta1: boom joint angle [rad], 0 = boom horizontal, + raised."""
-        return float(self.data.qpos[self._boom_q])
+        return float(self._qpos[self._boom_q])
 
     def bucket_angle(self) -> float:
         """theta2: bucket joint angle relative to the boom [rad], + curled."""
-        return float(self.data.qpos[self._bucket_q])
+        return float(self._qpos[self._bucket_q])
 
     def telescope_extension(self) -> float:
-        return float(self.data.qpos[self._telescope_q])
+        return float(self._qpos[self._telescope_q])
 
     def articulation_angle(self) -> float:
-        return float(self.data.qpos[self._articulation_q])
+        return float(self._qpos[self._articulation_q])
 
     def bucket_pitch(self) -> float:
         """Angle of the bucket floor above horizontal in the world [rad], + mouth up."""
-        x_axis = self.data.xmat[self.bucket_body].reshape(3, 3)[:, 0]
-        return float(math.atan2(x_axis[2], math.hypot(x_axis[0], x_axis[1])))
+        xmat = self._xmat[self.bucket_body]  # row-major 3x3: x axis = column 0
+        x, y, z = float(xmat[0]), float(xmat[3]), float(xmat[6])
+        return math.atan2(z, math.hypot(x, y))
 
     def heading(self) -> np.ndarray:
         """Unit horizontal forward direction of the front frame (world x, y)."""
-        xmat = self.data.xmat[self.front_frame_body]  # row-major 3x3: x axis = column 0
+        xmat = self._xmat[self.front_frame_body]  # row-major 3x3: x axis = column 0
         x, y = float(xmat[0]), float(xmat[3])
         norm = max(math.hypot(x, y), 1e-9)
         return np.array([x / norm, y / norm])
 
     def frame_tilt(self) -> float:
         """Tilt of the front frame from upright [rad] (roll and pitch together)."""
-        z_axis = self.data.xmat[self.front_frame_body].reshape(3, 3)[:, 2]
-        return float(math.acos(np.clip(z_axis[2], -1.0, 1.0)))
+        up = float(self._xmat[self.front_frame_body][8])  # z axis = column 2: its z is [8]
+        return math.acos(min(max(up, -1.0), 1.0))
 
     def forward_speed(self) -> float:
         """Ground speed of the front frame along its heading [m/s]."""
-        vel = np.empty(6)
+        vel = self._velocity
         mujoco.mj_objectVelocity(
             self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self.front_frame_body, vel, 0
         )
@@ -317,12 +337,17 @@ class Machine:
 
     def wheel_speeds(self) -> np.ndarray:
         """Wheel angular speeds [rad/s], order fl, fr, rl, rr."""
-        return self.data.qvel[self._wheel_v]
+        return self._qvel[self._wheel_v]
 
-    def wheel_slip_speed(self) -> float:
-        """Mean rim speed minus ground speed of the four wheels [m/s]; > 0 when spinning."""
+    def wheel_slip_speed(self, forward_speed_m_s: float | None = None) -> float:
+        """Mean rim speed minus ground speed of the four wheels [m/s]; > 0 when spinning.
+
+        ``forward_speed_m_s``: ``forward_speed()`` if the caller already has it.
+        """
         rim_speed = self.wheel_speeds() * self.params.wheel_radius_m
-        return float(np.mean(rim_speed) - self.forward_speed())
+        if forward_speed_m_s is None:
+            forward_speed_m_s = self.forward_speed()
+        return float(np.mean(rim_speed) - forward_speed_m_s)
 
     def drive_pressure_mpa(self) -> float:
         """p_d: HST high-side pressure [MPa].
@@ -333,20 +358,18 @@ class Machine:
         the loop is loaded (a shuttle valve picks the higher line).
         """
         p = self.params
-        loop_pa = abs(float(self.data.actuator_force[self.drive_actuator]))
+        loop_pa = abs(float(self._actuator_force[self.drive_actuator]))
         return p.drive_charge_pressure_mpa + loop_pa / MPA
 
     def boom_pressure_mpa(self) -> float:
         """p_l: boom (lift) cylinder piston-side pressure [MPa]; + torque raises the boom."""
-        p = self.params
-        force = float(self.data.actuator_force[self.boom_actuator]) / p.boom_moment_arm_m
-        return p.piston_pressure_mpa("boom", force)
+        force = float(self._actuator_force[self.boom_actuator]) / self.params.boom_moment_arm_m
+        return self._piston_pressure_mpa("boom", force)
 
     def bucket_pressure_mpa(self) -> float:
         """p_b: bucket cylinder piston-side pressure [MPa]; the piston side curls (+ theta2)."""
-        p = self.params
-        force = float(self.data.actuator_force[self.bucket_actuator]) / p.bucket_moment_arm_m
-        return p.piston_pressure_mpa("bucket", force)
+        force = float(self._actuator_force[self.bucket_actuator]) / self.params.bucket_moment_arm_m
+        return self._piston_pressure_mpa("bucket", force)
 
     def telescope_pressure_mpa(self) -> float:
         """p_t: telescope cylinder piston-side pressure [MPa].
@@ -355,8 +378,13 @@ class Machine:
         driven into the pile); the pull of gravity on a lowered telescope and bucket is
         carried by the rod side and leaves the reading at the tank pressure.
         """
-        force = float(self.data.actuator_force[self.telescope_actuator])
-        return self.params.piston_pressure_mpa("telescope", force)
+        force = float(self._actuator_force[self.telescope_actuator])
+        return self._piston_pressure_mpa("telescope", force)
+
+    def _piston_pressure_mpa(self, part: str, force_n: float) -> float:
+        """``MachineParameters.piston_pressure_mpa`` with the chamber areas computed once."""
+        tank, tank_annulus, piston = self._chambers[part]
+        return max(tank, (force_n + tank_annulus) / piston) / MPA
 
     def pump_angle(self, pump_fraction: float) -> float:
         """a: HST swash-plate angle [rad] for a displacement fraction."""
@@ -364,12 +392,5 @@ class Machine:
 
     def hydraulic_power_w(self) -> float:
         """Mechanical power delivered by all cylinders and wheel motors [W] (>= 0)."""
-        d = self.data
-        power = np.abs(d.actuator_force * d.actuator_velocity)
-        own = [
-            self.boom_actuator,
-            self.bucket_actuator,
-            self.telescope_actuator,
-            self.drive_actuator,
-        ]
-        return float(power[own].sum())
+        own = self._own_actuators
+        return float(np.abs(self._actuator_force[own] * self._actuator_velocity[own]).sum())

@@ -4,13 +4,20 @@ Every sensor of a plugin's ``Dict`` observation becomes its own key of the tenso
 (``boom_angle``, ``drive_pressure``...), so actors read sensors by name. Observations stay
 float32.
 
-- ``num_envs=1``: TorchRL's ``GymEnv`` around the plugin's Gymnasium env, batch size ``[]``.
+- ``num_envs=1``: ``SimulatorBatchEnv(..., unbatched=True)``: one simulator, batch size
+  ``[]`` (what TorchRL's ``GymEnv`` gives, at about half its per-step cost: ``GymEnv``
+  reads the observation through its spec's ``encode`` and completes the done keys at
+  every step; see docs/performance.md).
 - ``num_envs=N``: ``SimulatorBatchEnv``, a native ``EnvBase`` that steps N simulators one
   after another in this process and writes their readings straight into preallocated
   arrays, batch size ``[N]``. TorchRL's per-step bookkeeping (~0.2 ms) is then paid once
   for N simulators; measured on one core, 4 pile loaders per env run fastest (beyond that
   the models stop fitting in cache). Gymnasium's ``SyncVectorEnv`` under ``GymWrapper``
   was measured slower than a single env: it merges every ``info`` key into arrays.
+
+A step's tensordict is built from tensors whose shapes and dtypes this class made to
+match its specs, without TensorDict's per-entry validation (``TensorDict._new_unsafe``:
+~45 us of a ~80 us construction, measured).
 
 ``device`` defaults to ``None``: the simulators run on the CPU, and a TorchRL env given an
 explicit device casts every step's output with ``.to(device)`` (measured: ~0.4 ms of a
@@ -19,6 +26,7 @@ explicit device casts every step's output with ``.to(device)`` (measured: ~0.4 m
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 
 import gymnasium as gym
@@ -26,7 +34,7 @@ import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
-from torchrl.envs import EnvBase, GymEnv
+from torchrl.envs import EnvBase, ParallelEnv
 
 from .registry import DEFAULT_SIMULATOR, get_simulator, register_gymnasium_envs
 
@@ -45,6 +53,7 @@ class SimulatorBatchEnv(EnvBase):
             one float64 entry ``info`` [N, len(info_keys)] (one column per key, NaN where a
             simulator does not report it; one entry costs TorchRL less per step than many).
         reward_dtype: dtype of ``reward`` (float64 keeps the simulator's value exactly).
+        unbatched: one simulator (``num_envs`` must be 1) with batch size ``[]``.
 
     Sub-env ``i`` is reset with seed ``seed + i`` after ``set_seed(seed)``. Sub-envs that
     end are reset individually (TorchRL's ``_reset`` mask), the others keep running.
@@ -60,18 +69,23 @@ class SimulatorBatchEnv(EnvBase):
         device: str | None = None,
         info_keys: Sequence[str] = (),
         reward_dtype: torch.dtype = torch.float32,
+        unbatched: bool = False,
     ) -> None:
         if num_envs < 1:
             raise ValueError(f"SimulatorBatchEnv: num_envs must be >= 1, got {num_envs}")
+        if unbatched and num_envs != 1:
+            raise ValueError(f"SimulatorBatchEnv: unbatched needs num_envs=1, got {num_envs}")
+        batch = () if unbatched else (num_envs,)
         self._envs = [make_env() for _ in range(num_envs)]
-        super().__init__(batch_size=torch.Size([num_envs]), device=device)
+        super().__init__(batch_size=torch.Size(batch), device=device)
         space = self._envs[0].observation_space
         if not isinstance(space, gym.spaces.Dict):
             raise TypeError(f"SimulatorBatchEnv needs a Dict observation space, got {space}")
-        batch = (num_envs,)
+        self._unbatched = unbatched
         self._names = list(space.spaces)
+        # readings land in [num_envs, ...] arrays; an unbatched env hands out row 0
         self._obs = {
-            name: np.zeros((*batch, *box.shape), dtype=np.float32)
+            name: np.zeros((num_envs, *box.shape), dtype=np.float32)
             for name, box in space.spaces.items()
         }
         self.observation_spec = Composite(
@@ -87,7 +101,7 @@ class SimulatorBatchEnv(EnvBase):
             shape=batch,
         )
         self.info_keys = tuple(info_keys)
-        self._info = np.full((*batch, len(self.info_keys)), np.nan)
+        self._info = np.full((num_envs, len(self.info_keys)), np.nan)
         if self.info_keys:
             self.observation_spec[INFO_KEY] = Unbounded(
                 shape=(*batch, len(self.info_keys)), dtype=torch.float64
@@ -108,17 +122,26 @@ class SimulatorBatchEnv(EnvBase):
         self._seeds: list[int | None] = [None] * num_envs
         self._terminated = np.zeros((num_envs, 1), dtype=bool)
         self._truncated = np.zeros((num_envs, 1), dtype=bool)
+        self._not_done = torch.zeros(*batch, 1, dtype=torch.bool)  # cloned at every reset
 
     @property
     def simulators(self) -> tuple[gym.Env, ...]:
         """The Gymnasium simulators, sub-env order (to render one or read its settings)."""
         return tuple(self._envs)
 
+    def _out(self, array: np.ndarray) -> torch.Tensor:
+        """A fresh tensor of ``array`` [num_envs, ...] in the env's batch shape."""
+        return torch.from_numpy(array[0].copy() if self._unbatched else array.copy())
+
     def _observation_td(self) -> dict[str, torch.Tensor]:
-        return {
-            **{name: torch.from_numpy(self._obs[name].copy()) for name in self._names},
-            **({INFO_KEY: torch.from_numpy(self._info.copy())} if self.info_keys else {}),
-        }
+        out = {name: self._out(self._obs[name]) for name in self._names}
+        if self.info_keys:
+            out[INFO_KEY] = self._out(self._info)
+        return out
+
+    def _new_td(self, entries: dict[str, torch.Tensor]) -> TensorDictBase:
+        """A tensordict of ``entries``, made here in the shapes and dtypes of the specs."""
+        return TensorDict._new_unsafe(entries, batch_size=self.batch_size)
 
     def _write_obs(self, index: int, obs: dict, info: dict) -> None:
         for name in self._names:
@@ -128,39 +151,46 @@ class SimulatorBatchEnv(EnvBase):
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         mask = None if tensordict is None else tensordict.get("_reset", None)
+        if mask is not None:
+            mask = mask.reshape(len(self._envs), -1).any(-1).tolist()
         for i, env in enumerate(self._envs):
-            if mask is None or bool(mask[i].any()):
+            if mask is None or mask[i]:
                 obs, info = env.reset(seed=self._seeds[i])
                 self._seeds[i] = None
                 self._write_obs(i, obs, info)
                 self._terminated[i], self._truncated[i] = False, False
-        flags = torch.zeros(*self.batch_size, 1, dtype=torch.bool)
-        return TensorDict(
-            {**self._observation_td(), **{flag: flags.clone() for flag in END_FLAGS}},
-            batch_size=self.batch_size,
-        )
+        entries = self._observation_td()
+        for flag in END_FLAGS:
+            entries[flag] = self._not_done.clone()
+        return self._new_td(entries)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        actions = tensordict.get("action").detach().cpu().numpy()
-        stepped = tensordict.get("_step", None)
         n = len(self._envs)
+        actions = tensordict.get("action").detach().cpu().numpy().reshape(n, -1)
+        stepped = tensordict.get("_step", None)
+        if stepped is not None:
+            stepped = stepped.reshape(n).tolist()
         reward = np.zeros((n, 1), dtype=self._reward_dtype)
         terminated, truncated = self._terminated, self._truncated
         for i, env in enumerate(self._envs):
-            if stepped is not None and not bool(stepped[i]):
+            if stepped is not None and not stepped[i]:
                 continue  # an ended sub-env of a partial step: left as it is
             obs, reward[i, 0], terminated[i, 0], truncated[i, 0], info = env.step(actions[i])
             self._write_obs(i, obs, info)
-        return TensorDict(
-            {
-                **self._observation_td(),
-                "reward": torch.from_numpy(reward),
-                "terminated": torch.from_numpy(terminated.copy()),
-                "truncated": torch.from_numpy(truncated.copy()),
-                "done": torch.from_numpy(terminated | truncated),
-            },
-            batch_size=self.batch_size,
-        )
+        entries = self._observation_td()
+        entries["reward"] = self._out(reward)
+        entries["terminated"] = self._out(terminated)
+        entries["truncated"] = self._out(truncated)
+        entries["done"] = self._out(terminated | truncated)
+        return self._new_td(entries)
+
+    def _step_proc_data(self, next_tensordict: TensorDictBase) -> TensorDictBase:
+        """TorchRL's completion of a step's output (the reward viewed in its spec's shape,
+        missing done keys filled in: ~20% of TorchRL's per-step cost, measured), which
+        ``_step`` has already done; still run when TorchRL's type checks are on."""
+        if self.run_type_checks:
+            return super()._step_proc_data(next_tensordict)
+        return next_tensordict
 
     def _set_seed(self, seed: int | None) -> int | None:
         if seed is None:
@@ -178,19 +208,58 @@ def make_torchrl_env(
     name: str = DEFAULT_SIMULATOR,
     *,
     num_envs: int = 1,
+    workers: int = 1,
     device: str | None = None,
     seed: int | None = None,
+    use_buffers: bool = True,
     **kwargs,
 ) -> EnvBase:
-    """A TorchRL env around simulator ``name``; ``kwargs`` go to the simulator."""
+    """A TorchRL env around simulator ``name``; ``kwargs`` go to the simulator.
+
+    Args:
+        num_envs: simulators per process (``1``: batch ``[]``; else ``[num_envs]``).
+        workers: ``> 1``: a TorchRL ``ParallelEnv`` of ``workers`` processes, each stepping
+            ``num_envs`` simulators (batch ``[workers]`` or ``[workers, num_envs]``); the
+            sub-envs are seeded ``seed``, ``seed + 1``, ... in worker order when built.
+        use_buffers: (``workers > 1``) TorchRL's shared-memory buffers (its default). The
+            parent then spin-polls the workers' done flags at every step, a busy loop;
+            without them it blocks on the workers' pipes but pickles every step's
+            tensordicts, which cost it as much CPU (measured, docs/performance.md). Either
+            way a lockstep env needs a core for its parent beside the workers'.
+    """
     if num_envs < 1:
         raise ValueError(f"make_torchrl_env: num_envs must be >= 1, got {num_envs}")
+    if workers < 1:
+        raise ValueError(f"make_torchrl_env: workers must be >= 1, got {workers}")
     plugin = get_simulator(name)
+    if workers > 1:
+        # each worker's env is seeded where it is built (TorchRL's ``ParallelEnv.set_seed``
+        # hands worker k a hash of worker k-1's seed, not ``seed + k * num_envs``)
+        worker_seeds = [None if seed is None else seed + k * num_envs for k in range(workers)]
+        return ParallelEnv(
+            workers,
+            [
+                functools.partial(_worker_env, name, num_envs, device, worker_seed, kwargs)
+                for worker_seed in worker_seeds
+            ],
+            use_buffers=use_buffers,
+            num_sub_threads=1,
+        )
     register_gymnasium_envs()
-    if num_envs == 1:
-        env = GymEnv(plugin.gym_id, device=device, **kwargs)
-    else:
-        env = SimulatorBatchEnv(lambda: gym.make(plugin.gym_id, **kwargs), num_envs, device=device)
+    env = SimulatorBatchEnv(
+        lambda: gym.make(plugin.gym_id, **kwargs),
+        num_envs,
+        device=device,
+        unbatched=num_envs == 1,
+    )
     if seed is not None:
         env.set_seed(seed)
     return env
+
+
+def _worker_env(
+    name: str, num_envs: int, device: str | None, seed: int | None, kwargs: dict
+) -> EnvBase:
+    """One worker process's env (module level: the workers import it by name)."""
+    torch.set_num_threads(1)
+    return make_torchrl_env(name, num_envs=num_envs, device=device, seed=seed, **kwargs)

@@ -8,6 +8,7 @@ import sys
 import gymnasium as gym
 import numpy as np
 import pytest
+import torch
 from torchrl.envs.utils import check_env_specs
 
 import pilerl  # noqa: F401  (registers the plugins with Gymnasium)
@@ -134,3 +135,21 @@ def test_the_pile_loaders_winter_group_is_a_to_d_and_pools_in_summaries():
     assert plugin.pooled_groups() == {"winter": winter, "summer": ("summer",)}
     assert not set(held_out) & set(plugin.resolve_conditions(["all"], where="test"))
     assert plugin.fill_key == "fill_fraction" and "reward_success" in plugin.reward_parts
+
+
+def test_worker_processes_step_the_simulators_one_process_would():
+    """``make_torchrl_env(workers=2)`` (a TorchRL ``ParallelEnv``)
+    seeds its sub-envs in worker order: the same episodes as one process's batch."""
+
+    def push(td):
+        return td.set("action", torch.full((*td.batch_size, 1), 0.5))
+
+    parallel = make_torchrl_env("toy_cart", workers=2, seed=5)
+    try:
+        in_workers = parallel.rollout(20, push)
+    finally:
+        parallel.close()
+    in_process = make_torchrl_env("toy_cart", num_envs=2, seed=5).rollout(20, push)
+    assert in_workers.batch_size == in_process.batch_size == (2, 20)
+    assert in_workers["position"][0, 0] != in_workers["position"][1, 0]
+    assert torch.equal(in_workers["next", "position"], in_process["next", "position"])

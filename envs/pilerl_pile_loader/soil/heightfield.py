@@ -70,6 +70,8 @@ MOUTH_CREDIT_TIME_S = 0.2  # how long swept volume may wait for its columns [s]
 INTAKE_MODES = ("footprint", "mouth")  # the default first
 PILE_RGBA = (0.55, 0.47, 0.36, 1.0)
 RENDER_SINK_M = 0.005  # drawn pile sits this far down so bare cells hide under the ground
+CANDIDATE_MARGIN_M = 1e-6  # cells this far beyond the bucket's extent are still tested [m]
+UP = np.array([0.0, 0.0, 1.0])  # world vertical
 
 
 class HeightfieldSoil(SoilModel):
@@ -155,6 +157,13 @@ class HeightfieldSoil(SoilModel):
         xs = self._x0 + self.dx * np.arange(self.ncol)
         ys = self._y0 + self.dy * np.arange(self.nrow)
         self._grid_x, self._grid_y = np.meshgrid(xs, ys)  # (nrow, ncol)
+        self._cell_x, self._cell_y = xs, ys[:, None]  # the same cell centres, to broadcast
+        # MuJoCo's array attributes build a new NumPy view at every access (~1 us each, a
+        # few dozen per control step): keep the views, they share the model's memory
+        self._xmat, self._xpos = data.xmat, data.xpos
+        self._gear, self._forcerange = model.actuator_gear, model.actuator_forcerange
+        self._biasprm = model.actuator_biasprm
+        self._body_mass, self._body_inertia = model.body_mass, model.body_inertia
         self.cell_area_m2 = self.dx * self.dy
         self._factors = fee_factors(
             rake_angle_rad=math.radians(RAKE_ANGLE_DEG),
@@ -173,7 +182,8 @@ class HeightfieldSoil(SoilModel):
         self._edge_offsets_list = (
             np.linspace(-0.45, 0.45, EDGE_SAMPLES) * self.bucket.width_m
         ).tolist()
-        self.heights = np.zeros((self.nrow, self.ncol))
+        self.heights = np.zeros((self.nrow, self.ncol))  # pile surface [m]; reset/update write it
+        self._pile_mass_kg = 0.0  # of ``heights``, summed where they change (read every step)
         self._bind_mouth()
 
     def _bind_mouth(self) -> None:
@@ -204,6 +214,7 @@ class HeightfieldSoil(SoilModel):
         if self.pile.roughness_m > 0:
             heights = heights + self._undulation(rng) * (heights > 0)
         self.heights = np.clip(heights, 0.0, MAX_PILE_HEIGHT_M)
+        self._sum_pile_mass()
         self.bucket_load_kg = 0.0
         self.spilled_kg = 0.0
         self._depth_m = 0.0
@@ -230,17 +241,24 @@ class HeightfieldSoil(SoilModel):
     # ------------------------------------------------------------------ tallies
     @property
     def pile_mass_kg(self) -> float:
-        return float(self.heights.sum() * self.cell_area_m2 * self.material.density_kg_m3)
+        return self._pile_mass_kg
+
+    def _sum_pile_mass(self) -> None:
+        """Sum the pile's mass; called wherever ``heights`` change (the heightfield holds
+        ~12,000 cells: summing them at every step's ``info`` cost more than the intake)."""
+        self._pile_mass_kg = float(
+            self.heights.sum() * self.cell_area_m2 * self.material.density_kg_m3
+        )
 
     def cutting_depth_m(self) -> float:
         return self._depth_m
 
     # ------------------------------------------------------------------ update
     def update(self, dt: float) -> None:
-        d, machine = self.data, self.machine
+        machine = self.machine
         heading = machine.heading()
-        rotation = d.xmat[machine.bucket_body].reshape(3, 3)
-        hinge = d.xpos[machine.bucket_body]
+        rotation = self._xmat[machine.bucket_body].reshape(3, 3)
+        hinge = self._xpos[machine.bucket_body]
         # bucket inside polygon in the vertical plane through the hinge: (s along heading, z)
         world = hinge + self._polygon_local @ rotation.T
         s_poly = (world[:, :2] - hinge[:2]) @ heading
@@ -274,12 +292,14 @@ class HeightfieldSoil(SoilModel):
         self._write_resistance(force, heading, self.breakout_force_n(self._depth_m))
         self._write_payload()
 
-    def _window(self, xy: np.ndarray, margin: float) -> tuple[slice, slice] | None:
-        """Grid index window (rows, cols) covering points ``xy`` plus ``margin`` metres."""
-        c0 = int(math.floor((xy[:, 0].min() - margin - self._x0) / self.dx))
-        c1 = int(math.ceil((xy[:, 0].max() + margin - self._x0) / self.dx)) + 1
-        r0 = int(math.floor((xy[:, 1].min() - margin - self._y0) / self.dy))
-        r1 = int(math.ceil((xy[:, 1].max() + margin - self._y0) / self.dy)) + 1
+    def _window(
+        self, x_min: float, x_max: float, y_min: float, y_max: float
+    ) -> tuple[slice, slice] | None:
+        """Grid index window (rows, cols) covering the box [x_min, x_max] x [y_min, y_max] [m]."""
+        c0 = int(math.floor((x_min - self._x0) / self.dx))
+        c1 = int(math.ceil((x_max - self._x0) / self.dx)) + 1
+        r0 = int(math.floor((y_min - self._y0) / self.dy))
+        r1 = int(math.ceil((y_max - self._y0) / self.dy)) + 1
         c0, r0 = max(c0, 0), max(r0, 0)
         c1, r1 = min(c1, self.ncol), min(r1, self.nrow)
         if c0 >= c1 or r0 >= r1:
@@ -294,54 +314,76 @@ class HeightfieldSoil(SoilModel):
         z_poly: np.ndarray,
         hold_m3: float,
     ) -> None:
-        room_m3 = hold_m3 - self.bucket_load_kg / self.material.density_kg_m3
+        """Move the material under the bucket's inside into the bucket (module docstring, 1).
+
+        Plain floats for the footprint's few corners and NumPy only over the cells that can
+        hold material (inside the bucket's width and its extent along the heading): the
+        arithmetic per cell, and the order of the sum, are those of the whole-window form.
+        """
+        density = self.material.density_kg_m3
+        room_m3 = hold_m3 - self.bucket_load_kg / density
         if room_m3 <= 0.0:
             return
-        lateral = np.array([-heading[1], heading[0]])
+        hx, hy = float(heading[0]), float(heading[1])
+        lx, ly = -hy, hx  # lateral: the heading turned 90 deg to the left
         half_width = self.bucket.width_m / 2
+        h0, h1 = float(hinge[0]), float(hinge[1])
+        s_values = s_poly.tolist()
+        s_min, s_max = min(s_values), max(s_values)
         # footprint: the polygon's extent along the heading, the bucket width across it
-        s_min, s_max = float(s_poly.min()), float(s_poly.max())
-        corners = np.array(
-            [
-                hinge[:2] + s * heading + side * half_width * lateral
-                for s in (s_min, s_max)
-                for side in (-1.0, 1.0)
-            ]
-        )
-        window = self._window(corners, 0.0)
+        corners_x, corners_y = [], []
+        for s_corner in (s_min, s_max):
+            for side in (-1.0, 1.0):
+                across = side * half_width
+                corners_x.append(h0 + s_corner * hx + across * lx)
+                corners_y.append(h1 + s_corner * hy + across * ly)
+        window = self._window(min(corners_x), max(corners_x), min(corners_y), max(corners_y))
         if window is None:
             return
+        rows, cols = window
         heights = self.heights[window]
         if heights.max() <= z_poly.min():
             return
-        rel_x = self._grid_x[window] - hinge[0]
-        rel_y = self._grid_y[window] - hinge[1]
-        s = rel_x * heading[0] + rel_y * heading[1]
-        inside_width = np.abs(rel_x * lateral[0] + rel_y * lateral[1]) <= half_width
+        rel_x = self._cell_x[cols] - h0  # (cols,)
+        rel_y = self._cell_y[rows] - h1  # (rows, 1)
+        s = rel_x * hx + rel_y * hy  # (rows, cols): along the heading
+        inside_width = np.abs(rel_x * lx + rel_y * ly) <= half_width
+        # only cells within the polygon's extent along the heading can lie on one of its
+        # edges (the margin keeps any cell whose edge parameter rounds into [0, 1])
+        candidate = inside_width & (s >= s_min - CANDIDATE_MARGIN_M)
+        candidate &= s <= s_max + CANDIDATE_MARGIN_M
         # vertical extent of the bucket polygon at each cell's s: intersect with its edges
-        s_a, s_b = s_poly, s_poly[self._edge_next]
-        z_a, z_b = z_poly, z_poly[self._edge_next]
-        span = s_b - s_a
-        safe_span = np.where(np.abs(span) < 1e-9, 1e-9, span)
-        t = (s[..., None] - s_a) / safe_span
-        on_edge = (t >= 0.0) & (t <= 1.0) & (np.abs(span) >= 1e-9)
-        z_at = z_a + t * (z_b - z_a)
+        # (edges seen end-on along the heading hold no cell)
+        s_b, z_b = s_poly[self._edge_next], z_poly[self._edge_next]
+        span = s_b - s_poly
+        live = np.abs(span) >= 1e-9
+        if not candidate.any() or not live.any():
+            return
+        s_a, z_a, rise, span = s_poly[live], z_poly[live], (z_b - z_poly)[live], span[live]
+        t = (s[candidate][:, None] - s_a) / span
+        on_edge = (t >= 0.0) & (t <= 1.0)
+        z_at = z_a + t * rise
         z_floor = np.where(on_edge, z_at, np.inf).min(axis=-1)
         z_roof = np.where(on_edge, z_at, -np.inf).max(axis=-1)
-        inside = inside_width & np.isfinite(z_floor)
-        taken = np.where(inside, np.clip(np.minimum(heights, z_roof) - z_floor, 0.0, None), 0.0)
+        inside = np.isfinite(z_floor)
+        column = np.minimum(heights[candidate], z_roof) - z_floor
+        taken = np.zeros(heights.shape)
+        taken[candidate] = np.where(inside, np.clip(column, 0.0, None), 0.0)
         taken_m3 = float(taken.sum()) * self.cell_area_m2
         if taken_m3 <= 0.0:
             return
         if self.intake == "mouth":
-            taken, taken_m3 = self._through_mouth(taken, s, z_floor, s_poly, z_poly, room_m3)
+            floor = np.zeros(heights.shape)  # cells outside the candidates give nothing
+            floor[candidate] = np.where(inside, z_floor, 0.0)
+            taken, taken_m3 = self._through_mouth(taken, s, floor, s_poly, z_poly, room_m3)
             if taken_m3 <= 0.0:
                 return
         elif taken_m3 > room_m3:
             taken *= room_m3 / taken_m3
             taken_m3 = room_m3
         self.heights[window] = heights - taken
-        self.bucket_load_kg += taken_m3 * self.material.density_kg_m3
+        self._sum_pile_mass()
+        self.bucket_load_kg += taken_m3 * density
 
     def _mouth_sweep_m3(self, hinge: np.ndarray, rotation: np.ndarray) -> float:
         """Pile volume [m^3] the mouth swept into the bucket since the last update: each
@@ -431,24 +473,23 @@ class HeightfieldSoil(SoilModel):
         return shear + max(column, 0.0)
 
     def _write_resistance(self, force_n: float, heading: np.ndarray, breakout_n: float) -> None:
-        m, d = self.model, self.data
-        rotation = d.xmat[self.machine.bucket_body].reshape(3, 3)
-        forward_world = np.array([heading[0], heading[1], 0.0])
-        m.actuator_gear[self._push, :3] = rotation.T @ forward_world
-        m.actuator_gear[self._side, :3] = rotation.T @ np.array([-heading[1], heading[0], 0.0])
-        m.actuator_gear[self._lift, :3] = rotation.T @ np.array([0.0, 0.0, 1.0])
-        m.actuator_forcerange[self._push] = (-force_n, 0.0)
-        m.actuator_biasprm[self._push, 2] = -force_n / YIELD_SPEED_M_S
+        gear, forcerange, biasprm = self._gear, self._forcerange, self._biasprm
+        to_bucket = self._xmat[self.machine.bucket_body].reshape(3, 3).T
+        gear[self._push, :3] = to_bucket @ np.array([heading[0], heading[1], 0.0])
+        gear[self._side, :3] = to_bucket @ np.array([-heading[1], heading[0], 0.0])
+        gear[self._lift, :3] = to_bucket @ UP
+        forcerange[self._push] = (-force_n, 0.0)
+        biasprm[self._push, 2] = -force_n / YIELD_SPEED_M_S
         side = SIDE_RATIO * force_n
-        m.actuator_forcerange[self._side] = (-side, side)
-        m.actuator_biasprm[self._side, 2] = -side / YIELD_SPEED_M_S
-        m.actuator_forcerange[self._lift] = (-breakout_n, breakout_n)
-        m.actuator_biasprm[self._lift, 2] = -breakout_n / YIELD_SPEED_M_S
+        forcerange[self._side] = (-side, side)
+        biasprm[self._side, 2] = -side / YIELD_SPEED_M_S
+        forcerange[self._lift] = (-breakout_n, breakout_n)
+        biasprm[self._lift, 2] = -breakout_n / YIELD_SPEED_M_S
 
     def _write_payload(self) -> None:
         mass = max(self.bucket_load_kg, 1e-6)
-        self.model.body_mass[self._payload] = mass
-        self.model.body_inertia[self._payload] = mass * 0.02  # ~0.25 m radius of gyration
+        self._body_mass[self._payload] = mass
+        self._body_inertia[self._payload] = mass * 0.02  # ~0.25 m radius of gyration
 
     def _sync_hfield(self) -> None:
         data = self.model.hfield_data
