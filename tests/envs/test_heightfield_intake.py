@@ -79,7 +79,8 @@ def test_measuring_the_mouth_leaves_the_default_intake_bit_identical(
 
 def test_default_intake_takes_more_than_passes_the_mouth(footprint_scoop):
     """The finding behind the option: on the nominal expert's seeded scoop the default
-    intake reaches the 1.10 cap, while the mouth sweeps about half of that."""
+    intake reaches the 1.10 cap, while the mouth sweeps under half of that (0.32 with the
+    one-control-at-a-time expert; 0.55 with the expert before it)."""
     env = gym.make("pilerl/PileLoading-v0", sensor_noise=0.0, soil_options=MEASURE)
     # run_scoop closes its env; repeat the measured scoop here to read the tally
     from pilerl_pile_loader.operator import make_expert
@@ -94,15 +95,16 @@ def test_default_intake_takes_more_than_passes_the_mouth(footprint_scoop):
     assert info["fill_fraction"] == footprint_scoop.fill[-1]
     swept_fill = soil.mouth_swept_m3 / soil.bucket.rated_volume_m3
     assert info["fill_fraction"] == pytest.approx(1.10, abs=0.01)
-    assert 0.4 < swept_fill < 0.7
+    assert 0.2 < swept_fill < 0.45
 
 
 def test_mouth_intake_fills_what_the_mouth_swept(mouth_scoop, footprint_scoop):
     assert max(mouth_scoop.mass_error_kg) < 1e-9 * mouth_scoop.info["pile_mass_kg"]
     final = mouth_scoop.fill[-1]
     assert final < footprint_scoop.fill[-1] - 0.3
-    # the nominal expert's seed-0 scoop reads 0.60 (measured when the option was added)
-    assert final == pytest.approx(0.60, abs=0.06)
+    # the nominal expert's seed-0 scoop reads 0.48 (0.60 with the expert before the
+    # one-control-at-a-time turns, which curls with the foot off the gas)
+    assert final == pytest.approx(0.48, abs=0.06)
     assert mouth_scoop.info["scoop_finished"]
     assert mouth_scoop.info["success"] == (final >= 0.5)
 
