@@ -2,7 +2,7 @@
 
     python benchmarks/sample_efficiency.py --run outputs/pipeline/<time> \
         --methods ppo td3bc rlpd rlpd_residual --seeds 5 --scoops 200 \
-        --out outputs/sample_efficiency --report docs/results/finetune
+        --override rlpd:algorithm.utd_ratio=0.2 --out outputs/sample_efficiency
 
 For each method (a ``conf/algorithm/<name>.yaml``, composed like ``recipes/finetune.py``)
 and seed, fine-tunes the main job's cloned actor (``<run>/bc/best.pt``, demonstrations
@@ -74,11 +74,12 @@ def run_config(args: argparse.Namespace, method: str, seed: int, run_dir: Path) 
         f"evaluation.at_scoops=[{','.join(map(str, at_scoops))}]",
         "evaluation.every_frames=0",
         f"evaluation.episodes={args.eval_episodes}",
-        "evaluation.final_episodes=1",
+        f"evaluation.final_episodes={args.eval_episodes}",
         f"evaluation.seed={args.eval_seed}",
-        f"evaluation.final_seed={args.eval_seed + 1}",
+        f"evaluation.final_seed={args.eval_seed}",  # the same starts: evaluations reused
         "logger=csv",
         f"output_dir={run_dir}",
+        *[o.split(":", 1)[1] for o in args.override if o.split(":", 1)[0] in (method, "all")],
     ]
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
         cfg = compose(config_name="finetune", overrides=overrides)
@@ -278,11 +279,21 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("outputs/sample_efficiency"))
     parser.add_argument("--report", type=Path, default=ROOT / "docs/results/finetune")
     parser.add_argument("--shard", default="0/1", help="i/n: run every n-th (method, seed)")
+    parser.add_argument(
+        "--override",
+        nargs="*",
+        default=[],
+        help="METHOD:KEY=VALUE (or all:KEY=VALUE): a finetune config override for that method, "
+        "e.g. rlpd:algorithm.utd_ratio=0.2",
+    )
     parser.add_argument("--report-only", action="store_true")
     args = parser.parse_args()
     unknown = sorted(set(args.methods) - set(METHODS))
     if unknown:
         parser.error(f"--methods: unknown {unknown}; known: {list(METHODS)}")
+    bad = [o for o in args.override if ":" not in o or "=" not in o]
+    if bad:
+        parser.error(f"--override: expected METHOD:KEY=VALUE, got {bad}")
     if args.seeds < 1 or args.scoops < 1:
         parser.error("--seeds and --scoops must be >= 1")
     if not args.report_only:

@@ -191,6 +191,11 @@ class _Run:
         self.deadline: float | None = None
         self.final_eval_s = 0.0  # measured: one evaluation with final_episodes
         self.periodic_eval_s = 0.0  # measured: the last periodic evaluation
+        # (frames, groups, per condition) of the last periodic evaluation in this
+        # invocation, and (groups, per condition) of the one that saved best.pt: the final
+        # evaluations reuse them when they run on the same starts
+        self.last_periodic: tuple | None = None
+        self.best_periodic: tuple | None = None
 
     # ------------------------------------------------------------------ persistence
     def resume(self) -> bool:
@@ -249,6 +254,15 @@ class _Run:
         )
         return pooled, per_condition, records, plan
 
+    def _same_starts(self) -> bool:
+        """Whether periodic and final evaluations run the same episodes (same seed and
+        count): then an evaluation of the same weights is not run twice."""
+        evaluation = self.config.evaluation
+        return (
+            evaluation.seed == evaluation.final_seed
+            and evaluation.episodes == evaluation.final_episodes
+        )
+
     def evaluate_before(self) -> None:
         if self.state["before"] is None:
             evaluation = self.config.evaluation
@@ -265,10 +279,15 @@ class _Run:
         """Periodic evaluation of the current actor; keeps ``best.pt``."""
         evaluation = self.config.evaluation
         started = time.perf_counter()
-        groups, _, records, plan = self._evaluate(
-            self.evaluated, episodes=evaluation.episodes, seed=evaluation.seed
-        )
-        self.periodic_eval_s = time.perf_counter() - started
+        if self.state["frames"] == 0 and self._same_starts() and not evaluation.video:
+            # the untrained actor is the clone just evaluated on these very starts
+            groups, per_condition = self.state["before"], self.state["before_conditions"]
+            records = plan = None
+        else:
+            groups, per_condition, records, plan = self._evaluate(
+                self.evaluated, episodes=evaluation.episodes, seed=evaluation.seed
+            )
+            self.periodic_eval_s = time.perf_counter() - started
         if not self.final_eval_s and evaluation.episodes:  # resumed: scale the periodic one
             self.final_eval_s = (
                 self.periodic_eval_s * evaluation.final_episodes / evaluation.episodes
@@ -285,9 +304,13 @@ class _Run:
         )
         self.state["last_eval_frames"] = frames
         score = sum(g["success_rate"] for g in groups.values()) / len(groups)
-        if self.state["best_score"] is None or score > self.state["best_score"]:
+        best = self.state["best_score"] is None or score > self.state["best_score"]
+        if best:
             self.state["best_score"] = score
             save_any_actor(self.run_dir / BEST_ACTOR, self.evaluated)
+        self.last_periodic = (frames, groups, per_condition)
+        if best:
+            self.best_periodic = (groups, per_condition)
         for group, result in groups.items():
             self._log(f"eval_{group}_success_rate", result["success_rate"])
         if evaluation.video:
@@ -518,10 +541,17 @@ class _Run:
     def results(self, finished: bool) -> dict:
         evaluation = self.config.evaluation
         save_any_actor(self.run_dir / FINAL_ACTOR, self.evaluated)
-        after_final, final_conditions, *_ = self._evaluate(
-            self.evaluated, episodes=evaluation.final_episodes, seed=evaluation.final_seed
-        )
-        if _periodic(self.config):
+        last = self.last_periodic
+        reuse = self._same_starts() and last is not None and last[0] == self.state["frames"]
+        if reuse:
+            after_final, final_conditions = last[1], last[2]  # these weights, these starts
+        else:
+            after_final, final_conditions, *_ = self._evaluate(
+                self.evaluated, episodes=evaluation.final_episodes, seed=evaluation.final_seed
+            )
+        if _periodic(self.config) and self._same_starts() and self.best_periodic is not None:
+            after_best, best_conditions = self.best_periodic  # best.pt, evaluated there
+        elif _periodic(self.config):
             after_best, best_conditions, *_ = self._evaluate(
                 self.run_dir / BEST_ACTOR,
                 episodes=evaluation.final_episodes,

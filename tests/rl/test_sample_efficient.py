@@ -3,13 +3,15 @@ ensemble and critic warm-up, residual RL on the frozen clone, the benchmark's st
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import torch
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 from tensordict import TensorDict
-from test_rl import CONF, S, S_PRIME, tiny_config
+from test_rl import CONF, S_PRIME, S, tiny_config
 
 from pilerl.policies import actor_policy, load_actor, make_actor, save_actor
 from pilerl.rl import EvaluationConfig, FinetuneConfig, RLPDConfig, finetune
@@ -149,7 +151,7 @@ def test_critic_warmup_trains_the_critics_and_not_the_actor(cloned):
     after = learner.loss.qvalue_network_params.detach()
     assert any(
         not torch.equal(a, b)
-        for a, b in zip(critic_before.values(True, True), after.values(True, True))
+        for a, b in zip(critic_before.values(True, True), after.values(True, True), strict=True)
     )
 
 
@@ -249,6 +251,18 @@ def test_residual_rlpd_smoke_run_counts_scoops_and_saves_a_residual_actor(cloned
         assert all(torch.equal(kept[k], clone[k]) for k in clone)  # the clone stayed frozen
     scalars = tmp_path / "finetune" / "scalars"
     assert (scalars / "scoops.csv").exists() and (scalars / "failed_scoops.csv").exists()
+
+
+def test_evaluations_on_the_same_starts_are_not_run_twice(cloned, tmp_path):
+    checkpoint, demos_dir, _ = cloned
+    config = tiny_config(checkpoint, demos_dir, tmp_path, tiny_rlpd(), frames=64, every_frames=64)
+    config.evaluation.final_seed = config.evaluation.seed  # periodic and final: same starts
+    results = finetune(config, tmp_path, progress=False)
+    # before (the clone, also the curve's first point) and at 64 frames (also final, best)
+    assert results["evaluation_episodes"] == 2
+    evaluations = json.loads((tmp_path / "evaluations.json").read_text())
+    assert evaluations[0]["groups"] == results["before"]
+    assert evaluations[-1]["groups"] == results["after_final"]
 
 
 # ---------------------------------------------------------------- the benchmark's statistics
