@@ -42,10 +42,12 @@ def stratified_bootstrap_ci(
         raise ValueError(f"stratified_bootstrap_ci: need finite scores, got {scores.tolist()}")
     rng = np.random.default_rng(seed)
     runs, tasks = scores.shape
-    values = np.empty(repetitions)
-    for r in range(repetitions):
-        rows = rng.integers(0, runs, size=(runs, tasks))
-        values[r] = statistic(np.take_along_axis(scores, rows, axis=0))
+    rows = rng.integers(0, runs, size=(repetitions, runs, tasks))
+    resampled = np.take_along_axis(scores[None], rows, axis=1)  # [repetitions, runs, tasks]
+    if statistic is iqm:  # all resamples at once
+        values = trim_mean(resampled.reshape(repetitions, -1), 0.25, axis=1)
+    else:
+        values = np.array([statistic(sample) for sample in resampled])
     tail = 100 * (1 - confidence) / 2
     low, high = np.percentile(values, [tail, 100 - tail])
     return float(low), float(high)

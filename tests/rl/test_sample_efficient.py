@@ -4,6 +4,8 @@ ensemble and critic warm-up, residual RL on the frozen clone, the benchmark's st
 from __future__ import annotations
 
 import json
+import runpy
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -292,3 +294,52 @@ def test_success_curve_reads_as_a_step_function_over_scoops():
     assert scoops_to(scoops, rate, 0.9) == 24
     assert scoops_to(scoops, rate[:2], 0.9) is None
     assert area_under_curve(scoops, rate, 45) == pytest.approx((0.5 * 10 + 0.75 * 14 + 21) / 45)
+
+
+def fake_run(run_dir, curve_points: list[tuple[int, float, float]], *, failed: int, wall_s: float):
+    """A finished benchmark run on disk: its evaluations, results and wall time."""
+    run_dir.mkdir(parents=True)
+    evaluations = [
+        {
+            "frames": 500 * scoops,
+            "scoops": scoops,
+            "groups": {"winter": {"success_rate": w}, "summer": {"success_rate": s}},
+        }
+        for scoops, w, s in curve_points
+    ]
+    last = curve_points[-1][0]
+    results = {
+        "scoops": last,
+        "frames": 500 * last,
+        "failed_scoops": failed,
+        "tipped_scoops": 1,
+        "evaluation_episodes": 5 * len(curve_points),
+    }
+    (run_dir / "evaluations.json").write_text(json.dumps(evaluations))
+    (run_dir / "results.json").write_text(json.dumps(results))
+    (run_dir / "benchmark.json").write_text(json.dumps({"invocations_s": [wall_s / 2, wall_s / 2]}))
+
+
+def test_benchmark_report_tabulates_finished_runs(tmp_path, monkeypatch, capsys):
+    out, report = tmp_path / "runs", tmp_path / "report"
+    fake_run(
+        out / "ppo" / "seed0", [(0, 0.5, 0.0), (24, 0.75, 0.0), (45, 1.0, 1.0)], failed=9, wall_s=60
+    )
+    fake_run(out / "ppo" / "seed1", [(0, 0.5, 0.0), (40, 0.5, 0.0)], failed=20, wall_s=120)
+    fake_run(
+        out / "rlpd" / "seed0", [(0, 0.5, 0.0), (10, 1.0, 0.5), (40, 1.0, 1.0)], failed=3, wall_s=30
+    )
+    script = Path(__file__).resolve().parents[2] / "benchmarks" / "sample_efficiency.py"
+    argv = [str(script), "--report-only", "--out", str(out), "--report", str(report)]
+    monkeypatch.setattr("sys.argv", argv)
+    runpy.run_path(str(script), run_name="__main__")
+    table = (report / "sample_efficiency.md").read_text()
+    rows = {line.split(" | ")[0].strip("| "): line for line in table.splitlines()[2:]}
+    assert "45, >40" in rows["ppo"]  # per seed: reached at 45 scoops, never within 40
+    assert "| 10; 10.00 [10.00, 10.00] |" in rows["rlpd"]
+    assert "| 1.5 min |" in rows["ppo"] and "| 0.5 min |" in rows["rlpd"]
+    assert "14.5 (1.0) of 42" in rows["ppo"]
+    data = json.loads((report / "sample_efficiency.json").read_text())
+    assert data["runs"]["ppo"][0]["winter_at_40"] == 0.75  # the evaluation at 24 scoops
+    assert data["runs"]["ppo"][1]["winter_at_200"] is None  # never got there
+    assert (report / "sample_efficiency.png").stat().st_size > 0
