@@ -256,8 +256,15 @@ def report(args: argparse.Namespace) -> None:
     summaries = {m: [summarise_run(r) for r in rs] for m, rs in runs.items()}
     rows = [method_row(m, s) for m, s in summaries.items()]
     args.report.mkdir(parents=True, exist_ok=True)
-    text = table(rows)
-    write_text_atomic(args.report / "sample_efficiency.md", text + "\n")
+    first = next(iter(runs.values()))[0]["evaluations"][0]  # every run starts from the clone
+    clone = ", ".join(
+        f"{group} {result['success_rate']:.2f}" for group, result in first["groups"].items()
+    )
+    text = (
+        table(rows)
+        + f"\n\nThe clone before fine-tuning (0 scoops, the same held-out starts): {clone}.\n"
+    )
+    write_text_atomic(args.report / "sample_efficiency.md", text)
     write_text_atomic(
         args.report / "sample_efficiency.json",
         json.dumps({"rows": rows, "runs": summaries}, indent=1),
