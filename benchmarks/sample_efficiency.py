@@ -240,7 +240,7 @@ def plot(summaries: dict[str, list[dict]], path: Path) -> Path:
     for ax, group in zip(axes, ("winter (A-D pooled)", "summer"), strict=True):
         ax.axhline(THRESHOLD, color="grey", linestyle=":", linewidth=1)
         ax.axvline(40, color="grey", linestyle="--", linewidth=1)
-        ax.set_xlabel("scoops of training experience (evaluation episodes not counted)")
+        ax.set_xlabel("training scoops (evaluation episodes not counted)", fontsize=8)
         ax.set_title(group)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("success rate (seeds thin; IQM, 95% bootstrap band)")
