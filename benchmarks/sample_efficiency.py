@@ -137,6 +137,7 @@ def summarise_run(run: dict) -> dict:
         "failed_scoops": results["failed_scoops"],
         "tipped_scoops": results["tipped_scoops"],
         "evaluation_episodes": results["evaluation_episodes"],
+        "evaluation_s": results["evaluation_s"],
         "wall_s": run["wall_s"],
         "curve": {
             "scoops": winter[0].tolist(),
@@ -179,6 +180,11 @@ def method_row(method: str, summaries: list[dict]) -> dict:
         f"({np.mean([s['tipped_scoops'] for s in summaries]):.1f}) of "
         f"{np.mean([s['scoops'] for s in summaries]):.0f}",
         "evaluation_episodes": float(np.mean([s["evaluation_episodes"] for s in summaries])),
+        "evaluation_share": float(
+            np.mean([s["evaluation_s"] / s["wall_s"] for s in summaries if s["wall_s"]])
+        )
+        if any(s["wall_s"] for s in summaries)
+        else None,
         "wall_s": float(np.mean([s["wall_s"] for s in summaries if s["wall_s"] is not None]))
         if any(s["wall_s"] is not None for s in summaries)
         else None,
@@ -193,7 +199,7 @@ def method_row(method: str, summaries: list[dict]) -> dict:
 TABLE_HEADER = (
     "| method | seeds | scoops to 90% winter: per seed; IQM [95% CI] | winter @40 | summer @40 "
     "| winter @200 | summer @200 | winter AUC | failed (tipped) scoops during learning "
-    "| eval episodes | wall time / run |\n|" + "---|" * 11
+    "| eval episodes (share of wall time) | wall time / run |\n|" + "---|" * 11
 )
 
 
@@ -201,11 +207,12 @@ def table(rows: list[dict]) -> str:
     lines = [TABLE_HEADER]
     for r in rows:
         wall = f"{r['wall_s'] / 60:.1f} min" if r["wall_s"] is not None else "n/a"
+        share = f" ({100 * r['evaluation_share']:.0f}% of wall)" if r["evaluation_share"] else ""
         lines.append(
             f"| {r['method']} | {r['seeds']} | {r['scoops_to_90_per_seed']}; "
             f"{r['scoops_to_90_iqm_ci']} | {r['winter_at_40']} | {r['summer_at_40']} "
             f"| {r['winter_at_200']} | {r['summer_at_200']} | {r['winter_auc']} "
-            f"| {r['failed_scoops']} | {r['evaluation_episodes']:.0f} | {wall} |"
+            f"| {r['failed_scoops']} | {r['evaluation_episodes']:.0f}{share} | {wall} |"
         )
     return "\n".join(lines)
 

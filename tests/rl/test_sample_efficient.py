@@ -314,6 +314,7 @@ def fake_run(run_dir, curve_points: list[tuple[int, float, float]], *, failed: i
         "failed_scoops": failed,
         "tipped_scoops": 1,
         "evaluation_episodes": 5 * len(curve_points),
+        "evaluation_s": wall_s / 4,
     }
     (run_dir / "evaluations.json").write_text(json.dumps(evaluations))
     (run_dir / "results.json").write_text(json.dumps(results))
@@ -339,6 +340,7 @@ def test_benchmark_report_tabulates_finished_runs(tmp_path, monkeypatch, capsys)
     assert "| 10; 10.00 [10.00, 10.00] |" in rows["rlpd"]
     assert "| 1.5 min |" in rows["ppo"] and "| 0.5 min |" in rows["rlpd"]
     assert "14.5 (1.0) of 42" in rows["ppo"]
+    assert "| 12 (25% of wall) |" in rows["ppo"]
     data = json.loads((report / "sample_efficiency.json").read_text())
     assert data["runs"]["ppo"][0]["winter_at_40"] == 0.75  # the evaluation at 24 scoops
     assert data["runs"]["ppo"][1]["winter_at_200"] is None  # never got there
