@@ -179,9 +179,118 @@ class TD3BCConfig(LearnerConfig):
         return self.demo_fraction > 0
 
 
+@dataclass
+class RLPDConfig(LearnerConfig):
+    """Off-policy fine-tuning with demonstrations in the replay (RLPD-style), optionally as
+    residual RL on the frozen cloned actor (``pilerl.rl.rlpd``, ``pilerl.rl.residual``).
+
+    TorchRL ``TD3Loss`` over an ensemble of LayerNorm Q networks, TorchRL
+    ``OfflineToOnlineReplayBuffer`` drawing ``demo_fraction`` of every batch from the
+    demonstrations (0.5: RLPD's symmetric sampling), ``utd_ratio`` gradient steps per
+    collected frame.
+
+    Attributes:
+        name: ``rlpd``.
+        gamma: 0.997 per control step: the success bonus at the end of a 10-20 s scoop
+            must reach the critic (0.997^300 = 0.41; with 0.99, 0.05, both off-policy
+            learners were measured to learn to end the scoop early, empty).
+        frames_per_batch: environment steps collected between update rounds.
+        utd_ratio: critic gradient steps per collected frame (update-to-data ratio, > 0).
+        batch_size: transitions per gradient step (demos + online).
+        demo_fraction: share of each batch drawn from the demonstrations, in (0, 1);
+            0.5 is RLPD's symmetric sampling.
+        critic_ensemble: Q networks in the ensemble (>= 2); the TD target is their
+            minimum (TorchRL ``TD3Loss``), the actor follows the first.
+        critic_layer_norm: LayerNorm after each hidden layer of every Q network (RLPD).
+        buffer_size: online replay capacity [transitions].
+        tau: soft target update rate, in (0, 1].
+        policy_delay: critic updates per actor update.
+        policy_noise, noise_clip: target policy smoothing noise (action units).
+        exploration_sigma: std of the Gaussian noise added to the action when collecting.
+        residual: learn a residual actor added to the frozen clone's action (it starts
+            at zero, so the first actor is exactly the clone) instead of the clone's weights.
+        residual_scale: the largest correction the residual may add to each control
+            (``scale * tanh(.)``, action units in [-1, 1]).
+        residual_hidden: hidden layer widths of the residual actor.
+        critic_warmup_batches: first batches (the clone's own rollouts, with exploration
+            noise; 8 x 500 frames, about 8-10 scoops) that train only the critics, before
+            any actor update.
+        warmup_utd_ratio: critic gradient steps per collected frame during the warm-up.
+        (The rest: ``LearnerConfig``.)
+    """
+
+    name: str = "rlpd"
+    frames_per_batch: int = 500
+    actor_lr: float = 1e-4
+    critic_lr: float = 3e-4
+    gamma: float = 0.997
+    critic_hidden: list[int] = field(default_factory=lambda: [128, 128])
+    critic_warmup_batches: int = 8
+    utd_ratio: float = 0.5
+    batch_size: int = 256
+    demo_fraction: float = 0.5
+    critic_ensemble: int = 4
+    critic_layer_norm: bool = True
+    buffer_size: int = 200_000
+    tau: float = 0.005
+    policy_delay: int = 2
+    policy_noise: float = 0.1
+    noise_clip: float = 0.3
+    exploration_sigma: float = 0.1
+    residual: bool = False
+    residual_scale: float = 0.2
+    residual_hidden: list[int] = field(default_factory=lambda: [64, 64])
+    warmup_utd_ratio: float = 1.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ("batch_size", "buffer_size", "policy_delay"):
+            checks.positive_int(f"algorithm.{name}", getattr(self, name))
+        for name in ("utd_ratio", "warmup_utd_ratio", "tau", "residual_scale"):
+            checks.positive(f"algorithm.{name}", getattr(self, name))
+        for name in ("policy_noise", "noise_clip", "exploration_sigma"):
+            checks.non_negative(f"algorithm.{name}", getattr(self, name))
+        if self.tau > 1:
+            raise ValueError(f"algorithm.tau: must lie in (0, 1], got {self.tau}")
+        if not (isinstance(self.demo_fraction, int | float) and 0 < self.demo_fraction < 1):
+            raise ValueError(
+                f"algorithm.demo_fraction: must lie in (0, 1) (0.5: symmetric sampling), "
+                f"got {self.demo_fraction}"
+            )
+        if not isinstance(self.critic_ensemble, int) or self.critic_ensemble < 2:
+            raise ValueError(
+                f"algorithm.critic_ensemble: must be an integer >= 2, got {self.critic_ensemble}"
+            )
+        if self.batch_size > self.buffer_size:
+            raise ValueError(
+                f"algorithm.batch_size ({self.batch_size}) exceeds algorithm.buffer_size "
+                f"({self.buffer_size})"
+            )
+        if not self.residual_hidden or not all(
+            isinstance(w, int) and not isinstance(w, bool) and w >= 1 for w in self.residual_hidden
+        ):
+            raise ValueError(
+                f"algorithm.residual_hidden: must list layer widths >= 1, "
+                f"got {self.residual_hidden}"
+            )
+        if self.residual_scale > 2:
+            raise ValueError(
+                f"algorithm.residual_scale: at most 2 (the action range), got {self.residual_scale}"
+            )
+
+    def uses_demos(self) -> bool:
+        """Always: half of every batch (``demo_fraction``) comes from the demonstrations."""
+        return True
+
+    def updates_for(self, frames: int, *, warmup: bool) -> int:
+        """Critic gradient steps for a batch of ``frames`` (at least one)."""
+        ratio = self.warmup_utd_ratio if warmup else self.utd_ratio
+        return max(1, round(ratio * frames))
+
+
 # the ``algorithm`` group: name -> its settings (conf/algorithm/<name>.yaml extends them)
 ALGORITHMS: Registry[type[LearnerConfig]] = Registry(
-    "algorithm", {"ppo": PPOConfig, "td3bc": TD3BCConfig}
+    "algorithm", {"ppo": PPOConfig, "td3bc": TD3BCConfig, "rlpd": RLPDConfig}
 )
 
 
@@ -267,6 +376,9 @@ class EvaluationConfig:
         video: render one episode per group at each evaluation (mp4).
         video_conditions: the condition filmed for each group (its first if absent).
         confidence: level of the Wilson intervals.
+        at_scoops: also evaluate as soon as this many training scoops (episodes) have
+            ended, for each number listed (increasing; the sample-efficiency benchmark's
+            points). Evaluation episodes are not counted as scoops.
     """
 
     groups: dict[str, list[str]] = field(default_factory=dict)
@@ -279,8 +391,15 @@ class EvaluationConfig:
     video: bool = False
     video_conditions: dict[str, str] = field(default_factory=dict)
     confidence: float = 0.95
+    at_scoops: list[int] = field(default_factory=list)
 
     def __post_init__(self) -> None:
+        for i, scoops in enumerate(self.at_scoops):
+            checks.positive_int(f"evaluation.at_scoops[{i}]", scoops)
+        if list(self.at_scoops) != sorted(set(self.at_scoops)):
+            raise ValueError(
+                f"evaluation.at_scoops: must increase strictly, got {list(self.at_scoops)}"
+            )
         if not all(self.groups.values()):
             raise ValueError(f"evaluation.groups: each group needs conditions, got {self.groups}")
         checks.non_negative_int("evaluation.every_frames", self.every_frames)
@@ -320,6 +439,8 @@ class FinetuneConfig:
             run the whole curriculum), then evaluate and write the results as after the
             last frame.
         output_dir: run directory (resumed if it holds ``last.ckpt``).
+        max_scoops: stop collecting once this many training scoops (episodes) have ended
+            (0 = no limit); the scoop budget of ``benchmarks/sample_efficiency.py``.
     """
 
     checkpoint: str | None = None
@@ -335,8 +456,10 @@ class FinetuneConfig:
     checkpoint_every_frames: int = 10_000
     time_budget_minutes: float = 0.0
     output_dir: str = MISSING
+    max_scoops: int = 0
 
     def __post_init__(self) -> None:
+        checks.non_negative_int("max_scoops", self.max_scoops)
         for part, weight in self.reward_weights.items():
             checks.finite(f"reward_weights.{part}", weight)
             if weight < 0:
@@ -381,13 +504,13 @@ class FinetuneConfig:
         if isinstance(algorithm, PPOConfig):
             if algorithm.regularizer == "bc_demo" and self.demos is None:
                 raise ValueError("algorithm.regularizer 'bc_demo' needs demos: a dataset directory")
-        elif isinstance(algorithm, TD3BCConfig) and algorithm.demo_fraction > 0:
+        elif isinstance(algorithm, TD3BCConfig | RLPDConfig) and algorithm.demo_fraction > 0:
             if self.demos is None:
                 raise ValueError("algorithm.demo_fraction > 0 needs demos: a dataset directory")
             if any(w != 1.0 for w in self.reward_weights.values()):
                 raise ValueError(
                     "reward_weights: demonstrations carry the simulator's unweighted reward; "
-                    "TD3+BC with demo_fraction > 0 needs every weight = 1.0, got "
+                    f"{algorithm.name} with demo_fraction > 0 needs every weight = 1.0, got "
                     f"{dict(self.reward_weights)}"
                 )
         workers = self.collection.workers

@@ -27,10 +27,18 @@ class SensorCritic(nn.Module):
         stats: dataset statistics (``stats["sensors"][name]["mean" / "std"]``).
         hidden: hidden layer widths.
         n_actions: action size appended after the readings (0 for a state value).
+        layer_norm: LayerNorm after each hidden layer (RLPD's critics: bounded Q values
+            off the data's support).
     """
 
     def __init__(
-        self, sensors: Sequence[str], stats: dict, hidden: Sequence[int], *, n_actions: int = 0
+        self,
+        sensors: Sequence[str],
+        stats: dict,
+        hidden: Sequence[int],
+        *,
+        n_actions: int = 0,
+        layer_norm: bool = False,
     ) -> None:
         super().__init__()
         if not hidden or any(int(h) < 1 for h in hidden):
@@ -38,11 +46,14 @@ class SensorCritic(nn.Module):
         self.sensors = list(sensors)
         self.n_actions = n_actions
         self.normalizer = InputNormalizer.from_stats(self.sensors, stats)
+        widths = [{"normalized_shape": int(h)} for h in hidden]
+        norm = {"norm_class": nn.LayerNorm, "norm_kwargs": widths} if layer_norm else {}
         self.mlp = MLP(
             in_features=len(self.sensors) + n_actions,
             out_features=1,
             num_cells=[int(h) for h in hidden],
             activation_class=nn.Tanh,
+            **norm,
         )
 
     def forward(self, *inputs: torch.Tensor) -> torch.Tensor:
@@ -63,11 +74,16 @@ def make_value_network(policy: SensorPolicy, hidden: Sequence[int]) -> ValueOper
     )
 
 
-def make_q_network(policy: SensorPolicy, hidden: Sequence[int]) -> ValueOperator:
+def make_q_network(
+    policy: SensorPolicy, hidden: Sequence[int], *, layer_norm: bool = False
+) -> ValueOperator:
     """Action-value network ``Q(sensors, action)`` writing ``state_action_value``."""
     keys = policy.in_keys
+    critic = SensorCritic(
+        keys, policy.config.stats, hidden, n_actions=policy.config.n_controls, layer_norm=layer_norm
+    )
     return ValueOperator(
-        SensorCritic(keys, policy.config.stats, hidden, n_actions=policy.config.n_controls),
+        critic,
         in_keys=[*keys, ACTION_KEY],
         out_keys=[STATE_ACTION_VALUE_KEY],
     )

@@ -27,6 +27,10 @@ from pilerl.sim import get_simulator, make_gym_env
 from pilerl.sim.torchrl_env import SimulatorBatchEnv
 
 SUCCESS_KEY = "success"
+SCOOP_SUCCESS_KEY = "scoop_success"  # ``success`` as a plain float (a batched env's column)
+TIPPED_KEY = "tipped"  # the simulator's ``info`` flag of a tipped machine (NaN if none)
+# ``info`` columns of a batched training env (``SimulatorBatchEnv``): scoops are counted from them
+BATCH_INFO_KEYS = (SCOOP_SUCCESS_KEY, TIPPED_KEY)
 CONDITION_INDEX_KEY = "condition_index"
 SEED_RANGE = 2**31 - 1
 
@@ -125,9 +129,11 @@ class ConditionMixtureEnv(gym.Env):
     def _reported(self, info: dict) -> dict:
         """``info`` plus the condition index and ``success`` (from the simulator's declared
         success key); the keys TorchRL copies as float32 [1]."""
+        success = info.get(self.plugin.success_key, False)
         info = {
             **info,
-            SUCCESS_KEY: info.get(self.plugin.success_key, False),
+            SUCCESS_KEY: success,
+            SCOOP_SUCCESS_KEY: float(success),
             CONDITION_INDEX_KEY: self.condition_names.index(self.condition),
         }
         for key in info_keys(self.reward_weights):
@@ -158,7 +164,8 @@ def make_training_env(
       ``condition_index`` and every named reward part (float32, shape [1]).
     - ``num_envs=N``: ``pilerl.sim.torchrl_env.SimulatorBatchEnv``, batch size ``[N]``: N
       simulators stepped in a loop, TorchRL's per-step cost and the actor's forward pass
-      paid once for all N (much faster on CPU); sensors, reward and end flags only.
+      paid once for all N (much faster on CPU); sensors, reward, end flags and ``info``
+      [N, 2]: success and ``tipped`` (``BATCH_INFO_KEYS``), to count scoops.
     """
     seeds = iter(range(seed, seed + num_envs)) if seed is not None else None
 
@@ -172,7 +179,7 @@ def make_training_env(
         )
 
     if num_envs > 1:
-        return SimulatorBatchEnv(make_mixture, num_envs)
+        return SimulatorBatchEnv(make_mixture, num_envs, info_keys=BATCH_INFO_KEYS)
     mixture = make_mixture()
     env = GymWrapper(mixture)
     keys = info_keys(reward_weights)

@@ -68,7 +68,8 @@ def evaluate_groups(
     confidence: float = 0.95,
 ) -> tuple[dict[str, dict], list[dict], EvaluationPlan]:
     """(pooled success per group, one record per episode, the plan) of ``actor``: an actor
-    in memory (its weights as they are now go to the evaluation workers) or a saved one."""
+    in memory (its weights as they are now go to the evaluation workers), a saved one, or
+    an evaluation controller (``ActorWeights``, ``pilerl.rl.residual.ResidualWeights``)."""
     conditions = tuple(dict.fromkeys(c for members in groups.values() for c in members))
     plan = EvaluationPlan(
         simulator=simulator,
@@ -77,9 +78,12 @@ def evaluate_groups(
         episodes=episodes,
         seed=seed,
     )
-    controller = (
-        ActorController(str(actor)) if isinstance(actor, str | Path) else ActorWeights.of(actor)
-    )
+    if isinstance(actor, str | Path):
+        controller = ActorController(str(actor))
+    elif isinstance(actor, nn.Module):
+        controller = ActorWeights.of(actor)
+    else:  # a controller already (``pilerl.rl.residual.controller_for``)
+        controller = actor
     records = evaluate(controller, plan, workers=workers, progress=False)
     pooled = pool_groups(records, groups, confidence=confidence, simulator=simulator)
     return pooled, records, plan

@@ -3,12 +3,13 @@
 ``finetune(config, run_dir)`` reads top to bottom:
 
 1. check the config and the checkpoint (a neural controller) before any work;
-2. build the learner (PPO or TD3+BC) around the cloned actor;
+2. build the learner (PPO, TD3+BC or RLPD, plain or residual) around the cloned actor;
 3. resume from ``run_dir/last.ckpt`` if there is one;
 4. evaluate the cloned actor (before), per condition group, with Wilson intervals;
 5. for each curriculum stage: collect in that stage's condition mixture, update,
-   evaluate every ``evaluation.every_frames`` (keeping the best actor as ``best.pt``),
-   checkpoint every ``checkpoint_every_frames``;
+   evaluate every ``evaluation.every_frames`` and at the scoop counts ``evaluation.at_scoops``
+   (keeping the best actor as ``best.pt``), checkpoint every ``checkpoint_every_frames``,
+   stop after ``max_scoops`` scoops;
 6. evaluate ``best.pt`` and the last actor (after) on the before-evaluation's starts,
    plot success vs frames, write ``results.json``.
 
@@ -18,11 +19,11 @@ Files in ``run_dir``:
 |---|---|
 | ``last.ckpt`` | verified checkpoint (``run_checkpoint``): learner, optimisers, RNG, progress |
 | ``best.pt`` | actor with the best periodic evaluation (``pilerl.policies.load_actor``); |
-|  | the last actor when ``evaluation.every_frames`` is 0 (no periodic evaluation) |
+|  | the last actor when there is no periodic evaluation (``every_frames`` 0, no ``at_scoops``) |
 | ``final.pt`` | actor after the last update |
 | ``success_curve.png`` | success vs frames per group with Wilson bands |
 | ``evaluations.json`` | every periodic evaluation |
-| ``results.json`` | before / after per group, frames, wall time, collection speed |
+| ``results.json`` | before / after per group, frames, scoops (failed, tipped), wall time |
 | ``finetune/`` | TorchRL CSV log of every batch |
 | ``videos/`` | one episode per group at each evaluation (``evaluation.video``) |
 
@@ -35,6 +36,12 @@ state (weights, optimisers, generators, TD3+BC's replay buffer, simulators) and 
 the same weights. ``last.ckpt`` is read pickle-free and verified (``run_checkpoint``); a
 kill leaves the old or the new one, and the temporary file a kill may leave is removed on
 the next start, as are the CSV log rows written after the checkpoint (no duplicates).
+
+Scoops: every collected batch's ended episodes are counted (``pilerl.rl.scoops``): scoops
+of experience, and of those the failed and the tipped ones, in the log (``scoops``,
+``failed_scoops``, ``tipped_scoops``), in ``last.ckpt``'s progress, in every periodic
+evaluation's record and in ``results.json``. Evaluation episodes are not experience: they
+are counted apart (``evaluation_episodes``).
 """
 
 from __future__ import annotations
@@ -51,17 +58,20 @@ from tqdm import tqdm
 
 from pilerl.data import EpisodeStore
 from pilerl.evaluation.closed_loop import render_rollout
-from pilerl.evaluation.evaluator import ActorWeights, EvaluationPlan
+from pilerl.evaluation.evaluator import EvaluationPlan
 from pilerl.io import write_text_atomic
 from pilerl.loggers import make_logger
-from pilerl.policies import CheckpointError, actor_policy, load_actor, save_actor
+from pilerl.policies import CheckpointError, actor_policy, load_actor
 
 from .collection import make_collector, restart_collection, sync_weights
-from .config import FinetuneConfig, PPOConfig, resolve_simulator_words, uses_demos
+from .config import FinetuneConfig, PPOConfig, RLPDConfig, resolve_simulator_words, uses_demos
 from .envs import TrainingEnvFactory
 from .evaluation import evaluate_groups, plot_success_curve, pool_groups
 from .ppo import PPOLearner
+from .residual import controller_for, save_any_actor
+from .rlpd import RLPDLearner
 from .run_checkpoint import load_run, remove_partial_writes, save_run, set_global_rng_state
+from .scoops import count_scoops
 from .td3bc import TD3BCLearner
 
 log = logging.getLogger(__name__)
@@ -84,6 +94,7 @@ RUN_FILES = [
     "metrics.json",
     "done.json",
 ]
+SCOOP_FIELDS = ("scoops", "failed_scoops", "tipped_scoops")  # counted from the collected batches
 SEGMENT_SEED_STRIDE = 1_000_003  # segment seed = seed * stride + batches so far
 VIDEO_SIZE = (240, 320)  # (height, width) of evaluation videos [px]
 
@@ -105,9 +116,11 @@ def load_cloned_actor(checkpoint: str | Path):
 
 
 def make_learner(config: FinetuneConfig, actor, demos: TensorDictBase | None):
-    """``PPOLearner`` or ``TD3BCLearner`` for ``config.algorithm``."""
+    """``PPOLearner``, ``TD3BCLearner`` or ``RLPDLearner`` for ``config.algorithm``."""
     if isinstance(config.algorithm, PPOConfig):
         return PPOLearner(actor, config.algorithm, demos=demos, seed=config.seed)
+    if isinstance(config.algorithm, RLPDConfig):  # replay sampling: torch's global generator
+        return RLPDLearner(actor, config.algorithm, demos=demos)
     # replay sampling draws from torch's global generator, seeded with config.seed by the run
     return TD3BCLearner(actor, config.algorithm, demos=demos)
 
@@ -151,10 +164,17 @@ class _Run:
         torch.manual_seed(config.seed)
         demos = EpisodeStore.open(config.demos).to_tensordict() if uses_demos(config) else None
         self.learner = make_learner(config, self.actor, demos)
+        # what is evaluated and saved: the residual actor of a residual learner, else the
+        # cloned actor being fine-tuned
+        self.evaluated = getattr(self.learner, "deterministic_actor", self.policy)
         self.state: dict = {
             "identity": _run_identity(config),
             "frames": 0,
             "batches": 0,
+            "scoops": 0,
+            "failed_scoops": 0,
+            "tipped_scoops": 0,
+            "evaluation_episodes": 0,
             "last_eval_frames": -1,
             "last_checkpoint_frames": 0,
             "best_score": None,
@@ -171,6 +191,11 @@ class _Run:
         self.deadline: float | None = None
         self.final_eval_s = 0.0  # measured: one evaluation with final_episodes
         self.periodic_eval_s = 0.0  # measured: the last periodic evaluation
+        # (frames, groups, per condition) of the last periodic evaluation in this
+        # invocation, and (groups, per condition) of the one that saved best.pt: the final
+        # evaluations reuse them when they run on the same starts
+        self.last_periodic: tuple | None = None
+        self.best_periodic: tuple | None = None
 
     # ------------------------------------------------------------------ persistence
     def resume(self) -> bool:
@@ -212,7 +237,7 @@ class _Run:
         evaluation = self.config.evaluation
         started = time.perf_counter()
         pooled, records, plan = evaluate_groups(
-            actor,
+            controller_for(actor),
             evaluation.groups,
             simulator=self.config.env.simulator,
             env_kwargs=self.env_kwargs,
@@ -222,6 +247,7 @@ class _Run:
             confidence=evaluation.confidence,
         )
         self.state["evaluation_s"] += time.perf_counter() - started
+        self.state["evaluation_episodes"] += len(records)
         conditions = dict.fromkeys(r["condition"] for r in records)
         per_condition = pool_groups(
             records,
@@ -230,6 +256,15 @@ class _Run:
             simulator=self.config.env.simulator,
         )
         return pooled, per_condition, records, plan
+
+    def _same_starts(self) -> bool:
+        """Whether periodic and final evaluations run the same episodes (same seed and
+        count): then an evaluation of the same weights is not run twice."""
+        evaluation = self.config.evaluation
+        return (
+            evaluation.seed == evaluation.final_seed
+            and evaluation.episodes == evaluation.final_episodes
+        )
 
     def evaluate_before(self) -> None:
         if self.state["before"] is None:
@@ -247,21 +282,38 @@ class _Run:
         """Periodic evaluation of the current actor; keeps ``best.pt``."""
         evaluation = self.config.evaluation
         started = time.perf_counter()
-        groups, _, records, plan = self._evaluate(
-            self.policy, episodes=evaluation.episodes, seed=evaluation.seed
-        )
-        self.periodic_eval_s = time.perf_counter() - started
+        if self.state["frames"] == 0 and self._same_starts() and not evaluation.video:
+            # the untrained actor is the clone just evaluated on these very starts
+            groups, per_condition = self.state["before"], self.state["before_conditions"]
+            records = plan = None
+        else:
+            groups, per_condition, records, plan = self._evaluate(
+                self.evaluated, episodes=evaluation.episodes, seed=evaluation.seed
+            )
+            self.periodic_eval_s = time.perf_counter() - started
         if not self.final_eval_s and evaluation.episodes:  # resumed: scale the periodic one
             self.final_eval_s = (
                 self.periodic_eval_s * evaluation.final_episodes / evaluation.episodes
             )
-        frames = self.state["frames"]
-        self.state["evaluations"].append({"frames": frames, "groups": groups})
+        frames, state = self.state["frames"], self.state
+        self.state["evaluations"].append(
+            {
+                "frames": frames,
+                "scoops": state["scoops"],
+                "failed_scoops": state["failed_scoops"],
+                "tipped_scoops": state["tipped_scoops"],
+                "groups": groups,
+            }
+        )
         self.state["last_eval_frames"] = frames
         score = sum(g["success_rate"] for g in groups.values()) / len(groups)
-        if self.state["best_score"] is None or score > self.state["best_score"]:
+        best = self.state["best_score"] is None or score > self.state["best_score"]
+        if best:
             self.state["best_score"] = score
-            save_actor(self.run_dir / BEST_ACTOR, self.policy)
+            save_any_actor(self.run_dir / BEST_ACTOR, self.evaluated)
+        self.last_periodic = (frames, groups, per_condition)
+        if best:
+            self.best_periodic = (groups, per_condition)
         for group, result in groups.items():
             self._log(f"eval_{group}_success_rate", result["success_rate"])
         if evaluation.video:
@@ -272,7 +324,7 @@ class _Run:
     def _record_videos(self, frames: int, records: list[dict], plan: EvaluationPlan) -> None:
         """Episode 0 of each group's filmed condition, as just evaluated, to an mp4."""
         evaluation = self.config.evaluation
-        actor = ActorWeights.of(self.policy)
+        actor = controller_for(self.evaluated)
         for group, conditions in evaluation.groups.items():
             condition = evaluation.video_conditions.get(group, conditions[0])
             record = next(r for r in records if r["condition"] == condition)
@@ -326,7 +378,7 @@ class _Run:
     def reserve_s(self) -> float:
         """Time to keep for what follows training: the last periodic evaluation and the
         final evaluations of ``final.pt`` and ``best.pt``, as long as they took so far."""
-        periodic = bool(self.config.evaluation.every_frames)
+        periodic = _periodic(self.config)
         return (2 if periodic else 1) * self.final_eval_s + periodic * self.periodic_eval_s
 
     def _out_of_time(self) -> bool:
@@ -371,16 +423,34 @@ class _Run:
         config, state = self.config, self.state
         warmup = state["batches"] < config.algorithm.critic_warmup_batches
         started = time.perf_counter()
+        scoops = count_scoops(batch)
         metrics = self.learner.update(batch, warmup=warmup)
         sync_weights(collector)
         state["update_s"] += time.perf_counter() - started
         state["frames"] += batch.numel()
         state["batches"] += 1
-        for name, value in {**metrics, **_batch_stats(batch)}.items():
+        state["scoops"] += scoops.scoops
+        state["failed_scoops"] += scoops.failed
+        state["tipped_scoops"] += scoops.tipped
+        counts = {name: float(state[name]) for name in SCOOP_FIELDS}
+        for name, value in {**metrics, **_batch_stats(batch), **counts}.items():
             self._log(name, value)
         every = config.evaluation.every_frames
-        if every and state["frames"] - state["last_eval_frames"] >= every:
+        if (every and state["frames"] - state["last_eval_frames"] >= every) or (
+            self._scoop_milestone_passed()
+        ):
             self.evaluate_now()
+
+    def _scoop_milestone_passed(self) -> bool:
+        """Whether a scoop count of ``evaluation.at_scoops`` was passed since the last
+        evaluation."""
+        evaluations = self.state["evaluations"]
+        last = evaluations[-1].get("scoops", 0) if evaluations else -1
+        return any(last < m <= self.state["scoops"] for m in self.config.evaluation.at_scoops)
+
+    def _scoop_budget_spent(self) -> bool:
+        budget = self.config.max_scoops
+        return bool(budget) and self.state["scoops"] >= budget
 
     def _pending_stages(self) -> list[tuple[dict[str, float], int, list[int]]]:
         """(conditions, stage end, segment ends still ahead) of the rest of the
@@ -431,6 +501,8 @@ class _Run:
         in_time = True
         pending = self._pending_stages()
         for stage_index, (conditions, stage_end, segment_ends) in enumerate(pending):
+            if self._scoop_budget_spent():
+                break
             collector = self._stage_collector(conditions, stage_end)
             try:
                 self._start_segment(collector)
@@ -446,7 +518,7 @@ class _Run:
                     else:
                         bar.update(batch.numel())
                     in_time = not self._out_of_time()
-                    if not in_time:
+                    if not in_time or self._scoop_budget_spent():
                         break
                     if segment_ends and state["frames"] >= segment_ends[0]:  # a segment ends
                         while segment_ends and segment_ends[0] <= state["frames"]:
@@ -463,7 +535,7 @@ class _Run:
                 break
         bar.close()
         state["wall_s"] = wall_before + time.perf_counter() - started
-        if config.evaluation.every_frames and state["last_eval_frames"] != state["frames"]:
+        if _periodic(config) and state["last_eval_frames"] != state["frames"]:
             self.evaluate_now()
         self.save()
         return in_time
@@ -471,18 +543,25 @@ class _Run:
     # ------------------------------------------------------------------ results
     def results(self, finished: bool) -> dict:
         evaluation = self.config.evaluation
-        save_actor(self.run_dir / FINAL_ACTOR, self.policy)
-        after_final, final_conditions, *_ = self._evaluate(
-            self.policy, episodes=evaluation.final_episodes, seed=evaluation.final_seed
-        )
-        if evaluation.every_frames:
+        save_any_actor(self.run_dir / FINAL_ACTOR, self.evaluated)
+        last = self.last_periodic
+        reuse = self._same_starts() and last is not None and last[0] == self.state["frames"]
+        if reuse:
+            after_final, final_conditions = last[1], last[2]  # these weights, these starts
+        else:
+            after_final, final_conditions, *_ = self._evaluate(
+                self.evaluated, episodes=evaluation.final_episodes, seed=evaluation.final_seed
+            )
+        if _periodic(self.config) and self._same_starts() and self.best_periodic is not None:
+            after_best, best_conditions = self.best_periodic  # best.pt, evaluated there
+        elif _periodic(self.config):
             after_best, best_conditions, *_ = self._evaluate(
                 self.run_dir / BEST_ACTOR,
                 episodes=evaluation.final_episodes,
                 seed=evaluation.final_seed,
             )
         else:  # no periodic evaluation to choose by: the last actor is the best one known
-            save_actor(self.run_dir / BEST_ACTOR, self.policy)
+            save_any_actor(self.run_dir / BEST_ACTOR, self.evaluated)
             after_best, best_conditions = after_final, final_conditions
         state = self.state
         metrics = {
@@ -492,6 +571,8 @@ class _Run:
             "finished_curriculum": finished,
             "frames": state["frames"],
             "batches": state["batches"],
+            **{name: state[name] for name in SCOOP_FIELDS},
+            "evaluation_episodes": state["evaluation_episodes"],
             "wall_s": state["wall_s"],
             "collection_s": state["collection_s"],
             "update_s": state["update_s"],
@@ -514,13 +595,18 @@ class _Run:
         return metrics
 
 
+def _periodic(config: FinetuneConfig) -> bool:
+    """Whether the run evaluates during training (every some frames or at scoop counts)."""
+    return bool(config.evaluation.every_frames or config.evaluation.at_scoops)
+
+
 def _checked_progress(path: Path, saved: dict, fresh: dict) -> dict:
     """``saved`` progress if it has the fields of ``fresh`` with sane values."""
     if set(saved) != set(fresh):
         raise CheckpointError(
             f"{path}: progress has fields {sorted(saved)}, expected {sorted(fresh)}"
         )
-    for name in ("frames", "batches", "last_checkpoint_frames", "last_eval_frames"):
+    for name in ("frames", "batches", "last_checkpoint_frames", "last_eval_frames", *SCOOP_FIELDS):
         value = saved[name]
         if not isinstance(value, int) or isinstance(value, bool) or value < -1:
             raise CheckpointError(f"{path}: progress.{name} is {value!r}, not a count")
@@ -575,7 +661,15 @@ def flat_metrics(results: dict) -> dict[str, float]:
     """The numbers of ``results`` as one flat mapping (for ``pilerl.sweeps.mark_done``)."""
     flat = {
         key: float(results[key])
-        for key in ("frames", "batches", "wall_s", "collection_s", "update_s", "evaluation_s")
+        for key in (
+            "frames",
+            "batches",
+            *SCOOP_FIELDS,
+            "wall_s",
+            "collection_s",
+            "update_s",
+            "evaluation_s",
+        )
     }
     if results["collection_fps"] is not None:
         flat["collection_fps"] = float(results["collection_fps"])
@@ -599,7 +693,7 @@ def finetune(config: FinetuneConfig, run_dir: str | Path, *, progress: bool = Tr
     run.resume()
     run.start_clock()  # the budget covers the evaluations before and after training too
     run.evaluate_before()
-    if config.evaluation.every_frames and not run.state["evaluations"]:
+    if _periodic(config) and not run.state["evaluations"]:
         run.evaluate_now()  # the cloned actor: the curve's first point and best.pt so far
         run.save()
     finished = run.train()

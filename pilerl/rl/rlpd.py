@@ -1,0 +1,233 @@
+"""RLPD-style off-policy fine-tuning with the demonstrations in the replay.
+
+The parts, after Ball et al., "Efficient Online RL with Offline Data" (RLPD, ICML 2023):
+
+- **symmetric sampling**: every gradient step's batch is ``demo_fraction`` (0.5)
+  demonstrations and the rest online transitions, drawn by TorchRL's
+  ``OfflineToOnlineReplayBuffer`` (an exact split on every batch);
+- **LayerNorm critics** in an **ensemble** of ``critic_ensemble`` Q networks, trained by
+  TorchRL's ``TD3Loss`` (the TD target is the ensemble's minimum; RLPD's SAC takes the
+  minimum of a random pair of 10; TorchRL's ``TD3Loss`` has no subset, so the ensemble is
+  smaller, 4 by default);
+- a **high update-to-data ratio**: ``utd_ratio`` critic steps per collected frame;
+- a **critic warm-up**: the first ``critic_warmup_batches`` batches are the clone's own
+  rollouts (plus exploration noise); they train the critics only (at
+  ``warmup_utd_ratio``), so the first actor update follows a critic that has seen the
+  clone's scoops;
+- optionally **residual RL** (``residual=True``, ``pilerl.rl.residual``): the clone is
+  frozen and a small residual actor, zero at the start, learns a bounded correction.
+
+The actor is deterministic (TD3's), so collection adds Gaussian noise
+(``AdditiveGaussianModule``). ``state_dict()`` holds the online replay's transitions, so a
+resumed run samples what an uninterrupted one would.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from tensordict.nn import TensorDictModule, TensorDictSequential
+from torchrl.data import Bounded, LazyTensorStorage, OfflineToOnlineReplayBuffer, ReplayBuffer
+from torchrl.modules import AdditiveGaussianModule
+from torchrl.objectives import SoftUpdate, TD3Loss
+
+from pilerl.policies import actor_policy
+from pilerl.policies.checkpoint_file import (
+    CheckpointError,
+    load_module_state,
+    load_optimizer_state,
+)
+
+from .config import RLPDConfig
+from .critics import make_q_network
+from .residual import make_residual_actor
+
+END_FLAGS = ("done", "terminated", "truncated")
+
+
+def _leaf_name(key: str | tuple[str, ...]) -> str:
+    return "/".join((key,) if isinstance(key, str) else key)
+
+
+class RLPDLearner:
+    """RLPD-style learner on batches from a TorchRL collector.
+
+    Args:
+        actor: the cloned deterministic actor (``load_actor``); trained in place, or
+            frozen under a residual actor (``settings.residual``).
+        settings: the learner's settings.
+        demos: demonstration transitions (with ``next`` readings, reward and end flags).
+    """
+
+    def __init__(
+        self, actor: TensorDictModule, settings: RLPDConfig, *, demos: TensorDictBase | None
+    ) -> None:
+        self.settings = settings
+        self.clone_policy = actor_policy(actor).eval()
+        if settings.residual:
+            self.actor = make_residual_actor(
+                actor, settings.residual_hidden, scale=settings.residual_scale
+            )
+        else:
+            self.actor = actor
+        n_controls = self.clone_policy.config.n_controls
+        self.action_spec = Bounded(low=-1.0, high=1.0, shape=(n_controls,))
+        self.loss = TD3Loss(
+            self.actor,
+            make_q_network(
+                self.clone_policy, settings.critic_hidden, layer_norm=settings.critic_layer_norm
+            ),
+            action_spec=self.action_spec,
+            num_qvalue_nets=settings.critic_ensemble,
+            policy_noise=settings.policy_noise,
+            noise_clip=settings.noise_clip,
+            loss_function="l2",
+        )
+        self.loss.make_value_estimator(gamma=settings.gamma)
+        self.target_updater = SoftUpdate(self.loss, tau=settings.tau)
+        # the residual actor's clone gets no gradient: Adam skips it
+        self.actor_optimizer = torch.optim.Adam(
+            list(self.loss.actor_network_params.values(True, True)), lr=settings.actor_lr
+        )
+        self.critic_optimizer = torch.optim.Adam(
+            list(self.loss.qvalue_network_params.values(True, True)), lr=settings.critic_lr
+        )
+        self.exploration = AdditiveGaussianModule(
+            self.action_spec,
+            sigma_init=float(settings.exploration_sigma),
+            sigma_end=float(settings.exploration_sigma),
+            annealing_num_steps=1,
+        )
+        self._collection_policy = TensorDictSequential(self.actor, self.exploration)
+        self.keys = sorted(self.loss.in_keys, key=str)
+        if demos is None:
+            raise ValueError("RLPD: needs demonstrations (demos: a dataset directory)")
+        missing = [k for k in self.keys if k not in demos.keys(True)]
+        if missing:
+            raise KeyError(f"demos: no {missing} (RLPD needs next readings and reward)")
+        demo_data = self._as_stored(demos)
+        if torch.isnan(demo_data["next", "reward"]).any():
+            raise ValueError("demos: some rewards are NaN (imported logs): RLPD needs rewards")
+        offline = ReplayBuffer(storage=LazyTensorStorage(demo_data.numel()))
+        offline.extend(demo_data)
+        self.replay = OfflineToOnlineReplayBuffer(
+            offline,
+            online_capacity=settings.buffer_size,
+            offline_fraction=settings.demo_fraction,
+            batch_size=settings.batch_size,
+        )
+        self.updates = 0
+
+    @property
+    def collection_policy(self) -> TensorDictModule:
+        """What the collector runs (the actor plus Gaussian exploration noise)."""
+        return self._collection_policy
+
+    @property
+    def deterministic_actor(self) -> TensorDictModule:
+        """The actor to evaluate and save (the residual actor, or the clone trained)."""
+        return self.actor
+
+    def _as_stored(self, data: TensorDictBase) -> TensorDictBase:
+        """The loss's keys of ``data``, flat, with a float32 reward (as stored online)."""
+        stored = data.reshape(-1).select(*self.keys)
+        stored.set(("next", "reward"), stored["next", "reward"].float())
+        return stored
+
+    # ------------------------------------------------------------------ learning
+    def update(self, batch: TensorDictBase, *, warmup: bool = False) -> dict[str, float]:
+        """Store one collected batch, then ``utd_ratio`` critic steps per frame (during the
+        warm-up ``warmup_utd_ratio`` and no actor step), an actor step every
+        ``policy_delay``."""
+        online = self._as_stored(batch)
+        self.replay.extend(online)
+        steps = self.settings.updates_for(online.numel(), warmup=warmup)
+        q_sum, actor_sum, actor_steps = 0.0, 0.0, 0
+        for _ in range(steps):
+            data = self.replay.sample()
+            q_loss, _ = self.loss.value_loss(data)
+            self.critic_optimizer.zero_grad()
+            q_loss.backward()
+            self.critic_optimizer.step()
+            q_sum += float(q_loss.detach())
+            self.updates += 1
+            if not warmup and self.updates % self.settings.policy_delay == 0:
+                actor_loss, _ = self.loss.actor_loss(data)
+                self.actor_optimizer.zero_grad()
+                actor_loss.backward()
+                self.actor_optimizer.step()
+                actor_sum += float(actor_loss.detach())
+                actor_steps += 1
+            self.target_updater.step()
+        metrics = {
+            "loss_qvalue": q_sum / steps,
+            "warmup": float(warmup),
+            "updates": float(steps),
+            "replay_size": float(len(self.replay.online_buffer)),
+        }
+        if actor_steps:
+            metrics["loss_actor"] = actor_sum / actor_steps
+        return metrics
+
+    # ------------------------------------------------------------------ checkpoints
+    def state_dict(self) -> dict[str, object]:
+        """What ``last.ckpt`` stores: networks and targets, optimisers, the update count
+        and the online replay's transitions with its writer position."""
+        online = self.replay.online_buffer
+        size = len(online)
+        data = {}
+        if size:
+            data = {
+                _leaf_name(key): value.contiguous()
+                for key, value in online.storage[:size].items(True, True)
+            }
+        return {
+            "loss": self.loss.state_dict(),
+            "actor_optimizer": self.actor_optimizer.state_dict(),
+            "critic_optimizer": self.critic_optimizer.state_dict(),
+            "exploration": self.exploration.state_dict(),
+            "updates": self.updates,
+            "replay": {"size": size, "data": data, "writer": dict(online._writer.state_dict())},
+        }
+
+    def load_state_dict(self, state: dict, *, path: Path) -> None:
+        """Restore ``state_dict()`` read from ``path``; what does not fit is refused."""
+        load_module_state(path, self.loss, state.get("loss"), "learner.loss does not fit")
+        load_module_state(
+            path, self.exploration, state.get("exploration"), "learner.exploration does not fit"
+        )
+        for name in ("actor_optimizer", "critic_optimizer"):
+            load_optimizer_state(path, getattr(self, name), state.get(name), f"learner.{name}")
+        updates = state.get("updates")
+        if not isinstance(updates, int) or isinstance(updates, bool) or updates < 0:
+            raise CheckpointError(f"{path}: learner.updates is {updates!r}, not a count")
+        self._load_replay(path, state.get("replay"))
+        self.updates = updates
+
+    def _load_replay(self, path: Path, state: object) -> None:
+        if not isinstance(state, dict) or not isinstance(state.get("data"), dict):
+            raise CheckpointError(f"{path}: learner.replay is not a replay buffer state")
+        size, data, writer = state.get("size"), state["data"], state.get("writer")
+        capacity = self.settings.buffer_size
+        if not isinstance(size, int) or not 0 <= size <= capacity:
+            raise CheckpointError(
+                f"{path}: learner.replay holds {size!r} transitions (buffer size {capacity})"
+            )
+        cursor = writer.get("_cursor") if isinstance(writer, dict) else None
+        if not isinstance(cursor, int) or not 0 <= cursor < capacity:
+            raise CheckpointError(f"{path}: learner.replay has no valid writer position")
+        if size == 0:
+            return
+        expected = {_leaf_name(key): key for key in self.keys}
+        if set(data) != set(expected):
+            raise CheckpointError(
+                f"{path}: learner.replay holds {sorted(data)}, expected {sorted(expected)}"
+            )
+        for name, value in data.items():
+            if not isinstance(value, torch.Tensor) or value.shape[:1] != (size,):
+                raise CheckpointError(f"{path}: learner.replay/{name} is not [{size}, ...]")
+        online = self.replay.online_buffer
+        online.extend(TensorDict({expected[n]: v for n, v in data.items()}, batch_size=[size]))
+        online._writer.load_state_dict(writer)
