@@ -6,7 +6,10 @@ document wrote (demonstrations, datasets, checkpoints). A block whose info strin
 file (```yaml file=mapping.yaml) is written to that file when it is reached, so a
 walk-through's mapping or script is the one its commands use. Recipes and ``python -m``
 modules run in this process (imports are paid once); budgets are cut through overrides
-(``TINY``), which only shrink episodes, steps and frames. A command that cannot run here
+(``TINY``), which only shrink episodes, steps and frames. Documents that begin with the
+same commands (README, experiments, training and fine-tuning all record demonstrations
+first) run them once per session: a later document starts from a copy of the working
+directory those commands left (``SharedPrefixes``). A command that cannot run here
 says why in ``NOT_RUN``: the README's two front-door commands (CI runs them as written),
 a Ray cluster's commands, and commands over a user's own files. Every other command must
 run and exit 0, so the documents cannot drift from the code.
@@ -17,6 +20,7 @@ from __future__ import annotations
 import re
 import runpy
 import shlex
+import shutil
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -202,11 +206,70 @@ def test_every_documented_command_is_run_or_says_why_not():
         assert runnable or not_run_reason(command), f"{command}: neither run nor excused"
 
 
-@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: p.name)
-def test_documented_commands_run_as_written(document, tmp_path, monkeypatch):
-    commands = [
+def runnable_steps(document: Path) -> list[Command]:
+    """The document's file blocks and the commands this test runs, in reading order."""
+    return [
         c for c in document_steps(document) if c.writes is not None or not_run_reason(c) is None
     ]
+
+
+def step_key(step: Command) -> str:
+    """What a step does, whichever document it is in: the file it writes and its text, or
+    the command's words (the interpreter's path and comments left out)."""
+    if step.writes is not None:
+        return f"file {step.writes}\n{step.text}"
+    return shlex.join(step.argv)
+
+
+class SharedPrefixes:
+    """Working directories after the leading steps that two or more documents share.
+
+    Each document's steps run in a fresh directory; where a document begins with steps
+    another document of this session has already run (the same commands, in the same
+    order, from an empty directory), it starts from a copy of the directory they left
+    instead of running them again. Commands run in-process and are deterministic (seeded
+    recordings and training), so the copy holds what running them again would write.
+    A step that failed leaves no copy: the next document runs it and fails too.
+    """
+
+    def __init__(self, root: Path, documents: list[Path]):
+        self.root = root
+        keys = [tuple(step_key(s) for s in runnable_steps(d)) for d in documents]
+        # prefixes of two or more documents (the directories worth keeping)
+        seen: dict[tuple[str, ...], int] = {}
+        for document_keys in keys:
+            for n in range(1, len(document_keys) + 1):
+                seen[document_keys[:n]] = seen.get(document_keys[:n], 0) + 1
+        self.shared = {prefix for prefix, count in seen.items() if count > 1}
+        self.saved: dict[tuple[str, ...], Path] = {}
+
+    def restore(self, steps: list[Command], workdir: Path) -> int:
+        """Copy the longest saved prefix of ``steps`` into ``workdir``; the steps it covers."""
+        keys = tuple(step_key(s) for s in steps)
+        for n in range(len(keys), 0, -1):
+            if keys[:n] in self.saved:
+                shutil.copytree(self.saved[keys[:n]], workdir, symlinks=True, dirs_exist_ok=True)
+                return n
+        return 0
+
+    def save(self, steps: list[Command], n: int, workdir: Path) -> None:
+        """Keep ``workdir`` as it is after the first ``n`` steps, if another document shares
+        them."""
+        prefix = tuple(step_key(s) for s in steps[:n])
+        if prefix in self.shared and prefix not in self.saved:
+            copy = self.root / str(len(self.saved))
+            shutil.copytree(workdir, copy, symlinks=True)
+            self.saved[prefix] = copy
+
+
+@pytest.fixture(scope="session")
+def shared_prefixes(tmp_path_factory) -> SharedPrefixes:
+    return SharedPrefixes(tmp_path_factory.mktemp("docs_prefixes"), DOCUMENTS)
+
+
+@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: p.name)
+def test_documented_commands_run_as_written(document, tmp_path, monkeypatch, shared_prefixes):
+    commands = runnable_steps(document)
     if not commands:
         pytest.skip(f"{document.name} has no command to run here")
     # joblib (hydra/launcher=local_parallel) keeps its worker processes between calls, in
@@ -217,8 +280,10 @@ def test_documented_commands_run_as_written(document, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("OMP_NUM_THREADS", "1")
     try:
-        for command in commands:
+        done = shared_prefixes.restore(commands, tmp_path)
+        for n, command in enumerate(commands[done:], start=done + 1):
             run_command(command)
+            shared_prefixes.save(commands, n, tmp_path)
     finally:  # a Ray launcher run in this process leaves its local instance connected
         ray = sys.modules.get("ray")
         if ray is not None and ray.is_initialized():

@@ -21,9 +21,11 @@ from pilerl.sim import registry, settings
 DOCUMENT = ROOT / "docs" / "simulator_plugins.md"
 
 
-@pytest.fixture
-def installed_plugin(tmp_path, monkeypatch):
-    """The document's package installed into ``tmp_path/site``, on ``sys.path``."""
+@pytest.fixture(scope="module")
+def installed_plugin(tmp_path_factory):
+    """The document's package installed into ``<tmp>/site``, on ``sys.path`` (installed
+    once for this module's tests; the working directory is the temporary directory)."""
+    tmp_path = tmp_path_factory.mktemp("plugin")
     for step in document_steps(DOCUMENT):
         if step.writes is not None:
             path = tmp_path / step.writes
@@ -39,12 +41,12 @@ def installed_plugin(tmp_path, monkeypatch):
         check=True,
         timeout=300,
     )
-    monkeypatch.syspath_prepend(str(site))
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("OMP_NUM_THREADS", "1")
-    registry.refresh_simulators()
-    yield tmp_path
-    monkeypatch.undo()
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.syspath_prepend(str(site))
+        monkeypatch.chdir(tmp_path)
+        monkeypatch.setenv("OMP_NUM_THREADS", "1")
+        registry.refresh_simulators()
+        yield tmp_path
     registry.refresh_simulators()
     settings.settings_class.cache_clear()
     for name in [m for m in sys.modules if m == "my_heater" or m.startswith("my_heater.")]:
