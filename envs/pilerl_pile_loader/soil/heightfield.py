@@ -43,13 +43,14 @@ rest stays in the pile. Unspent credit fades with ``MOUTH_CREDIT_TIME_S``: the g
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
-from .base import SoilModel
+from .base import BucketGeometry, SoilModel
 from .earthmoving import GRAVITY_M_S2, cutting_force_n, fee_factors
 
 if TYPE_CHECKING:
@@ -72,6 +73,19 @@ PILE_RGBA = (0.55, 0.47, 0.36, 1.0)
 RENDER_SINK_M = 0.005  # drawn pile sits this far down so bare cells hide under the ground
 CANDIDATE_MARGIN_M = 1e-6  # cells this far beyond the bucket's extent are still tested [m]
 UP = np.array([0.0, 0.0, 1.0])  # world vertical
+
+
+@functools.lru_cache(maxsize=32)
+def holding_table(bucket: BucketGeometry, repose_angle_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """(pitch [rad], holding volume [m^3]) sampled over a full turn: the volume the bucket
+    holds depends only on its pitch, its geometry and the repose angle, so the table is
+    computed once per (bucket, repose angle) in a process, not once per simulator built
+    (0.1 s each); both arrays are read-only."""
+    pitch = np.linspace(-math.pi, math.pi, HOLDING_TABLE_POINTS)
+    volume = np.array([bucket.holding_volume_m3(p, repose_angle_rad) for p in pitch])
+    pitch.flags.writeable = False
+    volume.flags.writeable = False
+    return pitch, volume
 
 
 class HeightfieldSoil(SoilModel):
@@ -175,10 +189,7 @@ class HeightfieldSoil(SoilModel):
         self._polygon_local[:, 0], self._polygon_local[:, 2] = polygon[:, 0], polygon[:, 1]
         self._edge_next = np.roll(np.arange(len(polygon)), -1)
         # the holding volume depends only on pitch: tabulate it once
-        self._pitch_table = np.linspace(-math.pi, math.pi, HOLDING_TABLE_POINTS)
-        self._holding_table = np.array(
-            [self.bucket.holding_volume_m3(p, self.repose_angle_rad) for p in self._pitch_table]
-        )
+        self._pitch_table, self._holding_table = holding_table(self.bucket, self.repose_angle_rad)
         self._edge_offsets_list = (
             np.linspace(-0.45, 0.45, EDGE_SAMPLES) * self.bucket.width_m
         ).tolist()
