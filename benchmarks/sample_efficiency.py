@@ -167,23 +167,28 @@ def method_row(method: str, summaries: list[dict]) -> dict:
         str(s["scoops_to_90"]) if s["scoops_to_90"] is not None else f">{s['scoops']}"
         for s in summaries
     )
+    reached = sum(s["scoops_to_90"] is not None for s in summaries)
+    most_reached = reached > len(summaries) / 2  # else a median or IQM would be a censored value
+    # an interrupted invocation's wall time is not in the bench file while its evaluation
+    # time is in the run's totals: a share is only given where every run's times agree
+    shares = [s["evaluation_s"] / s["wall_s"] for s in summaries if s["wall_s"]]
     row = {
         "method": method,
         "seeds": len(summaries),
         "scoops_budget": budget,
         "scoops_to_90_per_seed": per_seed,
-        "scoops_to_90_iqm_ci": _iqm_ci(to90),
-        "scoops_to_90_median": float(np.median(to90)),
-        "reached_90": sum(s["scoops_to_90"] is not None for s in summaries),
+        "scoops_to_90_iqm_ci": _iqm_ci(to90)
+        if most_reached
+        else f"not reached by most seeds ({reached}/{len(summaries)})",
+        "scoops_to_90_median": float(np.median(to90)) if most_reached else None,
+        "reached_90": reached,
         "winter_auc": _iqm_ci([s["winter_auc"] for s in summaries]),
         "failed_scoops": f"{np.mean([s['failed_scoops'] for s in summaries]):.1f} "
         f"({np.mean([s['tipped_scoops'] for s in summaries]):.1f}) of "
         f"{np.mean([s['scoops'] for s in summaries]):.0f}",
         "evaluation_episodes": float(np.mean([s["evaluation_episodes"] for s in summaries])),
-        "evaluation_share": float(
-            np.mean([s["evaluation_s"] / s["wall_s"] for s in summaries if s["wall_s"]])
-        )
-        if any(s["wall_s"] for s in summaries)
+        "evaluation_share": float(np.mean(shares))
+        if shares and len(shares) == len(summaries) and max(shares) <= 1.0
         else None,
         "wall_s": float(np.mean([s["wall_s"] for s in summaries if s["wall_s"] is not None]))
         if any(s["wall_s"] is not None for s in summaries)
@@ -207,7 +212,11 @@ def table(rows: list[dict]) -> str:
     lines = [TABLE_HEADER]
     for r in rows:
         wall = f"{r['wall_s'] / 60:.1f} min" if r["wall_s"] is not None else "n/a"
-        share = f" ({100 * r['evaluation_share']:.0f}% of wall)" if r["evaluation_share"] else ""
+        share = (
+            f" ({100 * r['evaluation_share']:.0f}% of wall)"
+            if r["evaluation_share"] is not None
+            else " (share n/a: a resumed run's wall time is incomplete)"
+        )
         lines.append(
             f"| {r['method']} | {r['seeds']} | {r['scoops_to_90_per_seed']}; "
             f"{r['scoops_to_90_iqm_ci']} | {r['winter_at_40']} | {r['summer_at_40']} "

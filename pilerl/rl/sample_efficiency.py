@@ -54,9 +54,12 @@ def stratified_bootstrap_ci(
 
 
 def curve(evaluations: Sequence[dict], group: str) -> tuple[np.ndarray, np.ndarray]:
-    """(scoops, success rate) of ``group`` at each periodic evaluation, scoops increasing."""
+    """(scoops, success rate) of ``group`` at each periodic evaluation, scoops increasing;
+    evaluations at the same scoop count keep their order (the later one is the later
+    learning), never sorted by rate."""
     points = sorted(
-        (int(e["scoops"]), float(e["groups"][group]["success_rate"])) for e in evaluations
+        ((int(e["scoops"]), float(e["groups"][group]["success_rate"])) for e in evaluations),
+        key=lambda point: point[0],
     )
     if not points:
         raise ValueError(f"curve: no evaluations of {group!r}")

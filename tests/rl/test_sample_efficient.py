@@ -27,6 +27,7 @@ from pilerl.rl.residual import (
 from pilerl.rl.rlpd import RLPDLearner
 from pilerl.rl.sample_efficiency import (
     area_under_curve,
+    curve,
     iqm,
     scoops_to,
     stratified_bootstrap_ci,
@@ -296,6 +297,19 @@ def test_success_curve_reads_as_a_step_function_over_scoops():
     assert area_under_curve(scoops, rate, 45) == pytest.approx((0.5 * 10 + 0.75 * 14 + 21) / 45)
 
 
+def test_evaluations_at_one_scoop_count_keep_their_order():
+    """Two evaluations with no scoop between them: the later one is the later learning,
+    whatever its rate (sorting by rate would credit the better of the two)."""
+    evaluations = [
+        {"scoops": 10, "groups": {"winter": {"success_rate": 0.9}}},
+        {"scoops": 10, "groups": {"winter": {"success_rate": 0.2}}},
+        {"scoops": 0, "groups": {"winter": {"success_rate": 0.5}}},
+    ]
+    scoops, rate = curve(evaluations, "winter")
+    assert scoops.tolist() == [0, 10, 10] and rate.tolist() == [0.5, 0.9, 0.2]
+    assert success_at(scoops, rate, 10) == 0.2
+
+
 def fake_run(run_dir, curve_points: list[tuple[int, float, float]], *, failed: int, wall_s: float):
     """A finished benchmark run on disk: its evaluations, results and wall time."""
     run_dir.mkdir(parents=True)
@@ -337,6 +351,8 @@ def test_benchmark_report_tabulates_finished_runs(tmp_path, monkeypatch, capsys)
     table = (report / "sample_efficiency.md").read_text()
     rows = {line.split(" | ")[0].strip("| "): line for line in table.splitlines()[2:]}
     assert "45, >40" in rows["ppo"]  # per seed: reached at 45 scoops, never within 40
+    # one of two seeds reached 90%: no IQM of censored counts, the count instead
+    assert "not reached by most seeds (1/2)" in rows["ppo"]
     assert "| 10; 10.00 [10.00, 10.00] |" in rows["rlpd"]
     assert "| 1.5 min |" in rows["ppo"] and "| 0.5 min |" in rows["rlpd"]
     assert "14.5 (1.0) of 42" in rows["ppo"]
