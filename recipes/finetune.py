@@ -31,8 +31,12 @@ GROWABLE = ("curriculum.stages.*.frames", "time_budget_minutes")
 def first_group_success(metrics: dict) -> float:
     """The first evaluation group's success rate after fine-tuning (``best.pt``): by
     default the simulator's first declared group (the pile loader's winter A-D)."""
-    rates = {k: v for k, v in metrics.items() if k.startswith("after_best_")}
-    return float(next(v for k, v in rates.items() if k.endswith("_success_rate")))
+    rates = [
+        v for k, v in metrics.items() if k.startswith("after_best_") and k.endswith("_success_rate")
+    ]
+    if not rates:
+        raise ValueError(f"finetune objective: no after_best_*_success_rate in {sorted(metrics)}")
+    return float(rates[0])
 
 
 @recipe("finetune", objective=first_group_success)

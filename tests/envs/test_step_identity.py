@@ -9,6 +9,12 @@ says so in its commit.
 
 The actions are a fixed script (drive in, lift and curl), not the scripted expert, so the
 pinned numbers do not move when the expert's behaviour is tuned.
+
+The observations (the physics and the sensors) must match bit for bit. Rewards and
+``info`` are compared to 1e-9 relative: they include sums over the heightfield's ~12,000
+cells (the pile's mass), and NumPy's vectorised sum can differ in the last bits with the
+array's memory alignment, which depends on what ran before in the process (measured: a
+full suite run differed by at most 1e-12 absolute, 1.2e-10 relative, from a fresh one).
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ CASES = {
     "winter_c_latency": {"condition": "winter_c", "actuation_latency_s": (0.1, 0.3)},
 }
 SEEDS = {"summer": 3, "winter_c_latency": 11}
+SUM_RTOL, SUM_ATOL = 1e-9, 1e-9  # rewards and info: sums whose last bits follow alignment
 INFO_KEYS = (
     "fill_fraction",
     "bucket_load_kg",
@@ -97,7 +104,11 @@ def test_a_seeded_scoop_replays_the_pinned_physics_bit_for_bit(case, pinned):
     for part, values in trace.items():
         expected = pinned[f"{case}/{part}"]
         assert values.shape == expected.shape, f"{case} {part}: episode length changed"
-        differ = np.flatnonzero((values != expected).any(axis=tuple(range(1, values.ndim))))
+        if part == "observations":
+            mismatch = values != expected
+        else:
+            mismatch = ~np.isclose(values, expected, rtol=SUM_RTOL, atol=SUM_ATOL)
+        differ = np.flatnonzero(mismatch.any(axis=tuple(range(1, values.ndim))))
         assert differ.size == 0, (
             f"{case} {part}: first differs at step {differ[0]}: {values[differ[0]]} "
             f"!= pinned {expected[differ[0]]}"
@@ -134,8 +145,11 @@ def test_the_torchrl_rollout_reads_the_pinned_observations():
     first = torch.cat([episode.get(n)[:1] for n in names], dim=-1).numpy()
     np.testing.assert_array_equal(first, observations[:1])
     np.testing.assert_array_equal(got, observations[1 : len(got) + 1])
-    np.testing.assert_array_equal(
-        episode.get(("next", "reward")).reshape(-1).numpy(), rewards[: len(got)]
+    np.testing.assert_allclose(
+        episode.get(("next", "reward")).reshape(-1).numpy(),
+        rewards[: len(got)],
+        rtol=SUM_RTOL,
+        atol=SUM_ATOL,
     )
 
 
