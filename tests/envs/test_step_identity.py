@@ -10,11 +10,12 @@ says so in its commit.
 The actions are a fixed script (drive in, lift and curl), not the scripted expert, so the
 pinned numbers do not move when the expert's behaviour is tuned.
 
-The observations (the physics and the sensors) must match bit for bit. Rewards and
-``info`` are compared to 1e-9 relative: they include sums over the heightfield's ~12,000
-cells (the pile's mass), and NumPy's vectorised sum can differ in the last bits with the
-array's memory alignment, which depends on what ran before in the process (measured: a
-full suite run differed by at most 1e-12 absolute, 1.2e-10 relative, from a fresh one).
+The observations (the sensors, float32) must match bit for bit. Rewards and ``info``
+(float64) are compared to 1e-9: in CI's full suite run they differed from the pinned
+values in the last bits (at most 1e-12 absolute, 1.2e-10 relative) while the same test
+in a fresh process matched exactly, so something that runs earlier in the process moves
+the last bits of a float64 computation; the cause is not found yet (NumPy's sum over the
+pile's cells was checked and does not depend on the array's alignment).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ CASES = {
     "winter_c_latency": {"condition": "winter_c", "actuation_latency_s": (0.1, 0.3)},
 }
 SEEDS = {"summer": 3, "winter_c_latency": 11}
-SUM_RTOL, SUM_ATOL = 1e-9, 1e-9  # rewards and info: sums whose last bits follow alignment
+SUM_RTOL, SUM_ATOL = 1e-9, 1e-9  # rewards and info: last bits vary with process history
 INFO_KEYS = (
     "fill_fraction",
     "bucket_load_kg",
