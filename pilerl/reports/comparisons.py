@@ -9,8 +9,9 @@ on the same seeded starts. A claim is judged by a test, not by eye:
   per training seed and start, each side's score being its successes over its conditions
   at that start, put on a common scale. The exact one-sided sign-flip test
   (``stats.sign_flip_p``; McNemar's exact test on 0/1 pairs) gives the p-value. Without
-  per-episode records the test falls back to Fisher's exact test on the pooled counts,
-  and says so. The claim holds for the pair when p < ``ALPHA``.
+  episodes the two cells share (per-episode records of the same training seeds, conditions
+  and starts) the test falls back to Fisher's exact test on the pooled counts, and says
+  so. The claim holds for the pair when p < ``ALPHA``.
 - **A stays below / reaches x** (``threshold``): holds when the pooled 95% Wilson interval
   lies on the claimed side of x and no training seed's own rate is on the other side.
 """
@@ -54,7 +55,10 @@ class Comparison:
 
     def describe(self) -> str:
         if self.method == "unpaired":
-            return f"Fisher's exact test (no per-episode records), p={self.p_value:.3g}"
+            return (
+                f"Fisher's exact test (no episodes paired on seed, condition and start), "
+                f"p={self.p_value:.3g}"
+            )
         return (
             f"paired over {self.pairs} seeded starts × seeds ({self.a_ahead} vs "
             f"{self.b_ahead} better), ahead on {self.seeds_ahead} of {self.seeds} seeds, "
