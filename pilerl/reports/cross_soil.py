@@ -13,6 +13,7 @@ controller), the ranking is less likely to be an artefact of one model.
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
@@ -85,7 +86,7 @@ def soil_cells(sweep_dir: str | Path) -> SoilCells:
         for test, result in results.items():
             parts[soil][(*controller, test)].append((setup, result))
     by_soil = {
-        soil: {key: pool_seeds(members) for key, members in cells.items()}
+        soil: {key: pool_seeds(members, cell=(soil, *key)) for key, members in cells.items()}
         for soil, cells in parts.items()
     }
     return SoilCells(by_soil, finished, unfinished)
@@ -115,7 +116,7 @@ class SoilAgreement:
     soils: tuple[str, str]
     controllers: list[Controller]
     rates: list[tuple[float, float]]  # per controller: (first soil, second soil)
-    tau: float  # Kendall's tau-b over the controllers (nan: a constant ranking)
+    tau: float  # Kendall's tau-b over the controllers (nan: undefined, see ``tau_text``)
 
     @property
     def gaps(self) -> list[float]:
@@ -124,8 +125,32 @@ class SoilAgreement:
 
     @property
     def meets_target(self) -> bool:
-        """tau >= 0.6 and every gap within 15 points (issue #16's target)."""
+        """tau >= 0.6 and every gap within 15 points (issue #16's target); never met while
+        tau is undefined."""
         return self.tau >= TAU_TARGET and all(abs(g) <= GAP_TARGET for g in self.gaps)
+
+    @property
+    def tau_text(self) -> str:
+        """tau to two decimals, or why it is undefined: tau-b has no value when every
+        controller has the same success on a soil (that soil ranks none above another)."""
+        if not math.isnan(self.tau):
+            return f"{self.tau:.2f}"
+        tied = [
+            f"{soil} ({100 * rates[0]:.0f}%)"
+            for soil, rates in zip(self.soils, zip(*self.rates, strict=True), strict=True)
+            if len(set(rates)) == 1
+        ]
+        return (
+            f"undefined: every controller has the same success on {' and '.join(tied)}, "
+            "so there is no ranking to compare"
+        )
+
+    @property
+    def target_text(self) -> str:
+        """``yes`` / ``no``, and why not when tau is undefined."""
+        if math.isnan(self.tau):
+            return "no (τ undefined)"
+        return "yes" if self.meets_target else "no"
 
 
 def soil_agreement(

@@ -551,9 +551,9 @@ def add_cross_soil(report: Report, sweep_dir: Path) -> None:
             [
                 a.test,
                 len(a.controllers),
-                "undefined (a constant ranking)" if np.isnan(a.tau) else f"{a.tau:.2f}",
+                a.tau_text,
                 f"{100 * max(abs(g) for g in a.gaps):.0f} points",
-                "yes" if a.meets_target else "no",
+                a.target_text,
             ]
             for a in agreements
         ],

@@ -127,7 +127,8 @@ def closed_loop_cells(sweep_dir: str | Path) -> tuple[dict[tuple, Cell], list[Jo
         finished.append(setup)
         for test, result in results.items():
             parts[(setup.controller, setup.sensors, setup.dataset, test)].append((setup, result))
-    return {key: pool_seeds(members) for key, members in parts.items()}, finished, unfinished
+    cells = {key: pool_seeds(members, cell=key) for key, members in parts.items()}
+    return cells, finished, unfinished
 
 
 @dataclass(frozen=True)
@@ -197,15 +198,27 @@ def read_episode_outcomes(path: Path) -> dict[tuple[str, int], bool]:
     return outcomes
 
 
-def pool_seeds(members: list[tuple[JobSetup, TestResult]]) -> Cell:
-    """One cell from its jobs (one training seed each); a repeated seed is refused."""
+def pool_seeds(members: list[tuple[JobSetup, TestResult]], *, cell: tuple = ()) -> Cell:
+    """One cell from its jobs (one training seed each).
+
+    A training seed that two finished jobs of the cell share is refused, naming the cell
+    (``cell``: its key, for the message), the seed and the jobs: counting both would
+    count that seed's episodes twice, and keeping one would choose silently between two
+    runs. A resumed job finishes in its own directory, so a duplicate comes from a sweep
+    run again into the same directory tree; remove (or move) the copy that should not count.
+    """
     per_seed: dict[int, tuple[int, int]] = {}
     modes: dict[str, int] = {}
     outcomes: dict[Outcome, bool] = {}
     for setup, result in members:
         if setup.seed in per_seed:
-            others = [str(s.path) for s, _ in members if s.seed == setup.seed]
-            raise ValueError(f"training seed {setup.seed} appears in several jobs: {others}")
+            jobs = [str(s.path) for s, _ in members if s.seed == setup.seed]
+            named = " / ".join(str(part) for part in cell if part != "")  # no blank parts
+            where = f"cell {named}: " if named else ""
+            raise ValueError(
+                f"{where}training seed {setup.seed} appears in several jobs: {jobs}; a seed "
+                "is counted once, so remove or move the job that should not count"
+            )
         per_seed[setup.seed] = (result.successes, result.episodes)
         for mode, n in result.failure_modes.items():
             modes[mode] = modes.get(mode, 0) + n

@@ -276,6 +276,57 @@ def test_cross_soil_report_gives_tau_and_the_gap_per_controller(tmp_path):
     assert "Soil model `particles`:" in text and "| wet_clay |" in text
 
 
+def test_a_repeated_seed_is_refused_naming_the_cell_the_seed_and_the_jobs(tmp_path):
+    # a sweep run twice into one tree: two finished jobs of DANNet seed 2, same outcomes
+    sweep = tmp_path / "exp"
+    for n in (0, 1):
+        seeded_job(sweep, n, policy="dannet", seed=2, wins={"summer": [True, False]})
+    with pytest.raises(ValueError) as refused:
+        closed_loop_cells(sweep)
+    message = str(refused.value)
+    assert "cell dannet / s_pt / d_ii / summer" in message
+    assert "training seed 2 appears in several jobs" in message
+    assert str(sweep / "0") in message and str(sweep / "1") in message
+    assert "remove or move the job that should not count" in message
+    # the cross-soil pooling names the soil too
+    for n in (0, 1):
+        seeded_job(tmp_path / "soils", n, policy="rf", seed=0, soil="particles", wins={})
+    for n in (0, 1):  # two evaluate jobs of one checkpoint on one soil
+        job = tmp_path / "soils" / str(n)
+        summary = {"summer": {"successes": 1, "episodes": 1}}
+        (job / "summary.json").write_text(json.dumps(summary))
+    with pytest.raises(ValueError, match="cell particles / scripted / summer: training seed 0"):
+        soil_cells(tmp_path / "soils")
+
+
+def test_cross_soil_tau_is_undefined_with_its_reason_when_every_controller_ties(tmp_path):
+    train = tmp_path / "train"
+    for n, policy in enumerate(("rf", "dannet")):  # both 4/4 on both soils: no ranking
+        run = seeded_job(train, n, policy=policy, seed=0, wins={"summer": [True]})
+        for k, soil in enumerate(("heightfield", "particles")):
+            seeded_job(
+                tmp_path / "soils",
+                2 * n + k,
+                policy=policy,
+                seed=0,
+                soil=soil,
+                checkpoint=str(run / "best.pt"),
+                wins={"summer": [True] * 4},
+            )
+    agreement = soil_agreement(soil_cells(tmp_path / "soils"), ("heightfield", "particles"))
+    assert math.isnan(agreement.tau) and not agreement.meets_target
+    reason = (
+        "undefined: every controller has the same success on heightfield (100%) and "
+        "particles (100%), so there is no ranking to compare"
+    )
+    assert agreement.tau_text == reason
+    assert agreement.target_text == "no (τ undefined)"
+    markdown, _ = build_report(out_dir=tmp_path / "report", cross_soil=tmp_path / "soils")
+    text = markdown.read_text()
+    assert f"| every condition | 2 | {reason} | 0 points | no (τ undefined) |" in text
+    assert "nan" not in text.lower().replace("nnet", "")
+
+
 # --- a tiny real sweep over seeds -----------------------------------------------------------
 
 
