@@ -5,7 +5,7 @@ RL fine-tuning → evaluation again → a report with plots and videos.
     python recipes/pipeline.py policy=nnetv2 sensors=s_pt finetune.time_budget_minutes=10
 
 Everything goes under the run directory (``outputs/pipeline/<time>/``): ``demos/``,
-``datasets/d_ii``, ``bc/`` (``best.pt``, ``losses.png``), ``evaluation/cloned`` and
+``datasets/d_ii``, ``bc/`` (``final.pt``, ``best.pt``, ``losses.png``), ``evaluation/cloned`` and
 ``evaluation/finetuned`` (episodes, success and fill plots, videos), ``finetune/``
 (``best.pt``, success-vs-frames curve), ``figures/`` and ``report.md`` / ``report.html``.
 Each stage skips what an interrupted run already finished, so running the same command
@@ -99,7 +99,7 @@ def main(config: PipelineConfig, run: Run) -> dict[str, float]:
         where = out.sub("evaluation", where).root
         return evaluate_controller(controller, plan, config.evaluation, where, videos=videos)
 
-    cloned = closed_loop(bc.best_actor, "cloned", "cloned")
+    cloned = closed_loop(Path(rl_config.checkpoint), "cloned", "cloned")  # bc.selection
 
     # --- 5. RL fine-tuning (resumes from its own checkpoint)
     if not is_done(rl):

@@ -76,8 +76,13 @@ def write_pipeline_report(
         f"{policy} with s = {config.sensors.s}"
         + (f", s′ = {config.sensors.s_prime}" if config.sensors.s_prime else "")
         + f"; {config.bc.gradient_steps} gradient steps of {config.bc.batch_size}, RAdam "
-        f"lr {config.bc.learning_rate:g}, seed {config.bc.seed}; best.pt = lowest validation "
-        "loss on the winter demonstrations."
+        f"lr {config.bc.learning_rate:g}, seed {config.bc.seed}; the cloned controller is "
+        + (
+            "final.pt, the weights after the whole budget (the winter validation loss is "
+            "plotted, not used to choose)."
+            if config.bc.selection == "final"
+            else "best.pt, the epoch with the lowest validation loss on the winter demonstrations."
+        )
     )
     report.image("bc/losses.png", "Training and validation loss")
 
@@ -124,7 +129,7 @@ def write_pipeline_report(
         report,
         out,
         actors={
-            "cloned": RunLayout(out).sub("bc").best_actor,
+            "cloned": Path(config.finetune.checkpoint),  # the one bc.selection chose
             "fine-tuned": RunLayout(out).sub("finetune").best_actor,
         },
         demos=Path(winter.root),

@@ -2,7 +2,7 @@
 
 ``recipes/train_bc.py`` and the pipeline's cloning step both call these:
 :func:`cloning_actor` builds the untrained controller (its initial weights drawn from the
-seed), :func:`clone` trains it into a run directory (``best.pt``, ``last.pt``,
+seed), :func:`clone` trains it into a run directory (``best.pt``, ``final.pt``, ``last.pt``,
 ``losses.png``, the logger's files; an interrupted run resumes from ``last.pt``), and
 :func:`clone_ensemble` trains many seeds at once for the curves of the paper's Fig. 4.
 """
@@ -19,7 +19,7 @@ from tensordict.nn import TensorDictModule
 
 from pilerl.layout import RunLayout
 from pilerl.loggers import make_logger
-from pilerl.policies import controller_inputs, get_spec, make_actor
+from pilerl.policies import controller_inputs, get_spec, make_actor, save_actor
 
 from .bc import BCSettings, epochs_for_steps, train_bc
 from .ensemble import train_bc_ensemble, write_ensemble_curves
@@ -87,12 +87,14 @@ def clone(
 ) -> tuple[TensorDictModule, dict[str, float | int]]:
     """Train ``actor`` into ``run_dir``; returns (the trained actor, the run's metrics:
     epochs, final training loss and, with validation data, the final and best validation
-    losses)."""
+    losses). Besides ``best.pt`` (lowest validation loss) and ``last.pt`` (training
+    state), ``final.pt`` holds the actor after the whole budget."""
     layout = RunLayout(run_dir)
     logger = make_logger(logger_backend, layout.root, experiment_name="bc")
     actor, history = train_bc(
         actor, train, validation, settings, run_dir=layout.root, logger=logger
     )
+    save_actor(layout.final_actor, actor)
     plot_losses(history, layout.losses_plot, title=title)
     final = history[-1]
     metrics = {"epochs": final["epoch"], "train_loss": final["train_loss"]}

@@ -20,6 +20,8 @@ from pilerl.sim.settings import EnvConfig
 
 from .bc import BCSettings
 
+SELECTIONS = ("final", "best")  # the pipeline's cloned controller: bc/final.pt or bc/best.pt
+
 
 @dataclass
 class TrainBCConfig:
@@ -92,15 +94,23 @@ class BCStepConfig:
     Attributes:
         gradient_steps: training budget in gradient steps (epochs follow from the size).
         batch_size, learning_rate, seed: as in ``recipes/train_bc.py``.
+        selection: which weights the pipeline evaluates and fine-tunes: ``final`` (the
+            weights after the whole budget, ``bc/final.pt``: the paper trains a fixed 150
+            epochs and uses its winter demonstrations only to plot the validation loss) or
+            ``best`` (``bc/best.pt``, the epoch with the lowest winter validation loss:
+            a choice made on the test condition, which with the reactive operator picks
+            an early, under-trained epoch; docs/training.md, "Which weights").
     """
 
     gradient_steps: int = 3000
     batch_size: int = BCSettings.batch_size
     learning_rate: float = BCSettings.learning_rate
     seed: int = BCSettings.seed
+    selection: str = "final"
 
     def __post_init__(self) -> None:
         checks.positive_int("bc.gradient_steps", self.gradient_steps)
         checks.positive_int("bc.batch_size", self.batch_size)
         checks.positive("bc.learning_rate", self.learning_rate)
         checks.non_negative_int("bc.seed", self.seed)
+        checks.one_of("bc.selection", self.selection, SELECTIONS)

@@ -91,6 +91,43 @@ def test_best_checkpoint_loads_safely_and_acts_the_same(datasets, tmp_path):
     )
 
 
+def test_clone_keeps_the_final_weights_beside_the_best(datasets, tmp_path):
+    from pilerl.training.clone import clone
+
+    _, train, validation = datasets
+    torch.manual_seed(0)
+    actor = make_actor("nnetv2", sensors=S, stats=train.stats)
+    settings = BCSettings(epochs=4, batch_size=64)
+    actor, metrics = clone(
+        actor, train.to_tensordict(), validation, settings, tmp_path, logger_backend="none",
+        title="t",
+    )  # fmt: skip
+    final = load_actor(tmp_path / "final.pt")
+    assert validation_loss(final, validation) == pytest.approx(metrics["validation_loss"])
+    assert validation_loss(load_actor(tmp_path / "best.pt"), validation) == pytest.approx(
+        metrics["best_validation_loss"]
+    )
+    a, b = final.module.state_dict(), actor.module.state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)  # the weights clone() returns
+
+
+def test_the_pipeline_clones_the_final_weights_unless_told(tmp_path):
+    from hydra import compose, initialize_config_dir
+    from omegaconf import OmegaConf
+
+    from pilerl.config import register_configs
+    from pilerl.training.settings import BCStepConfig
+
+    register_configs()
+    for overrides, chosen in (([], "final.pt"), (["bc.selection=best"], "best.pt")):
+        with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+            cfg = compose("pipeline", overrides=[f"output_dir={tmp_path}", *overrides])
+        config = OmegaConf.to_object(cfg)
+        assert config.finetune.checkpoint == f"{tmp_path}/bc/{chosen}"  # what BC and RL use
+    with pytest.raises(ValueError, match=r"bc.selection: unknown 'last'; known: \['final'"):
+        BCStepConfig(selection="last")
+
+
 def test_corrupt_training_checkpoint_is_refused(datasets, tmp_path):
     _, train, _ = datasets
     (tmp_path / "last.pt").write_bytes(b"not a checkpoint")
