@@ -33,9 +33,18 @@ Particles, second table (one row per resolution):
     python benchmarks/particle_resolution.py --solver-iterations 40 --mouth-grains 8
     python benchmarks/particle_resolution.py --contact-timeconst 0.004  # stiffer grains
     python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
+    python benchmarks/particle_resolution.py --penetration --seeds 3     # push tests
 
 ``--intake-only`` prints only the heightfield table, for every condition preset (the
-expert's fill and success with either intake; no particles).
+expert's fill and success with either intake, without and with ``body_resistance``; no
+particles).
+
+``--penetration`` pushes the bucket into the pile with a fixed throttle (0.6, boom held)
+from seeded starts 1.0-1.5 m from the toe, level (bucket held) and curled (full bucket
+curl for the first 0.6 s, ~0.4-0.5 rad, then held), for 10 s on every soil: the
+heightfield by default, with ``body_resistance=True``, and particles at the default
+resolution. ``pen``: the furthest the cutting edge got past the toe line [m], mean over
+the seeds; ``/p``: over the particles'.
 """
 
 from __future__ import annotations
@@ -56,6 +65,12 @@ from pilerl_pile_loader.soil.particles import (  # noqa: E402
 import pilerl  # noqa: E402,F401  (registers pilerl/PileLoading-v0)
 
 ENV_ID = "pilerl/PileLoading-v0"
+PUSH_THROTTLE = 0.6  # the issue's drive-in throttle
+PUSH_SECONDS = 10.0
+PUSH_START_M = (1.0, 1.5)  # cutting edge to toe at reset [m]
+PUSH_CURLS_S = {"level": 0.0, "curled": 0.6}  # full curl command for this long first [s]
+PUSH_CONDITIONS = ("summer", "winter_a", "winter_c", "winter_d")
+BODY = {"body_resistance": True}
 
 
 def make_expert(dt: float):
@@ -110,30 +125,100 @@ def run_scoops(
     return summary, build_s, env
 
 
+def push_penetration_m(env: gym.Env, seed: int, curl_s: float) -> float:
+    """Fixed-throttle push from a seeded start: the furthest the cutting edge got past the
+    pile's toe line along world x [m] (the pile's face is normal to x)."""
+    env.reset(seed=seed)
+    sim = env.unwrapped
+    site, toe_x = sim.machine.cutting_edge_site, sim.soil.pile.toe_x_m
+    furthest, elapsed = -np.inf, 0.0
+    while elapsed < PUSH_SECONDS - 1e-9:
+        bucket = 1.0 if elapsed < curl_s - 1e-9 else 0.0
+        action = np.array([0.0, bucket, PUSH_THROTTLE], dtype=np.float32)
+        _, _, terminated, truncated, info = env.step(action)
+        elapsed = info["elapsed_s"]
+        furthest = max(furthest, float(sim.data.site_xpos[site][0]) - toe_x)
+        if terminated or truncated:
+            break
+    return furthest
+
+
+def print_penetration_table(seeds: list[int]) -> None:
+    """How far a pushed bucket gets into the pile on each soil, level and curled."""
+    soils = (
+        ("hf default", {"soil": "heightfield"}),
+        ("hf body", {"soil": "heightfield", "soil_options": BODY}),
+        ("particles", {"soil": "particles"}),
+    )
+    print(
+        f"penetration [m] past the toe, throttle {PUSH_THROTTLE}, boom held, "
+        f"{PUSH_SECONDS:.0f} s, seeds {seeds[0]}-{seeds[-1]}"
+    )
+    header = (
+        f"{'condition':>10} {'bucket':>7} "
+        + " ".join(f"{name:>10}" for name, _ in soils)
+        + f" {'default/p':>9} {'body/p':>6}  per seed (default | body | particles)"
+    )
+    print(header)
+    print("-" * len(header))
+    for condition in PUSH_CONDITIONS:
+        envs = {
+            name: gym.make(
+                ENV_ID,
+                condition=condition,
+                sensor_noise=0.0,
+                start_distance_range_m=PUSH_START_M,
+                **kwargs,
+            )
+            for name, kwargs in soils
+        }
+        for pose, curl_s in PUSH_CURLS_S.items():
+            pens = {
+                name: [push_penetration_m(env, seed, curl_s) for seed in seeds]
+                for name, env in envs.items()
+            }
+            mean = {name: float(np.mean(values)) for name, values in pens.items()}
+            per_seed = " | ".join(fills_text(values) for values in pens.values())
+            print(
+                f"{condition:>10} {pose:>7} "
+                + " ".join(f"{mean[name]:10.3f}" for name, _ in soils)
+                + f" {mean['hf default'] / mean['particles']:9.2f}"
+                + f" {mean['hf body'] / mean['particles']:6.2f}  {per_seed}",
+                flush=True,
+            )
+        for env in envs.values():
+            env.close()
+
+
 def fills_text(fills: list[float]) -> str:
     return ", ".join(f"{f:.2f}" for f in fills)
 
 
 def print_intake_table(seeds: list[int]) -> None:
-    """The heightfield's two intakes on every condition preset: mean fill and success."""
+    """The heightfield's two intakes, without and with resistance over the buried body, on
+    every condition preset: mean fill, success and episode length."""
     from pilerl_pile_loader.conditions import CONDITIONS
 
     n = len(seeds)
-    print(f"heightfield, {n} seeded scoops by the nominal expert per condition")
-    header = (
-        f"{'condition':>10} {'fill fp':>7} {'swept':>5} {'succ fp':>7} "
-        f"{'fill mouth':>10} {'succ mouth':>10}"
+    configs = (
+        ("fp", {"measure_mouth": True}),
+        ("mouth", {"intake": "mouth"}),
+        ("fp+body", {"measure_mouth": True, **BODY}),
+        ("mouth+body", {"intake": "mouth", **BODY}),
     )
+    print(
+        f"heightfield, {n} seeded scoops by the nominal expert per condition: "
+        "fill / success / mean episode s (swept: what passed the mouth, fp)"
+    )
+    header = f"{'condition':>10} {'swept':>5} " + " ".join(f"{name:>17}" for name, _ in configs)
     print(header)
     print("-" * len(header))
     for condition in CONDITIONS:
-        fp, _, _ = run_scoops(seeds, condition, soil_options={"measure_mouth": True})
-        mouth, _, _ = run_scoops(seeds, condition, soil_options={"intake": "mouth"})
-        print(
-            f"{condition:>10} {fp['fill']:7.3f} {fp['swept']:5.3f} {fp['success']:>4}/{n:<2} "
-            f"{mouth['fill']:10.3f} {mouth['success']:>7}/{n:<2}",
-            flush=True,
+        rows = {name: run_scoops(seeds, condition, soil_options=o)[0] for name, o in configs}
+        cells = " ".join(
+            f"{r['fill']:5.3f} {r['success']:>2}/{n:<2} {r['sim_s']:5.1f}" for r in rows.values()
         )
+        print(f"{condition:>10} {rows['fp']['swept']:5.3f} {cells}", flush=True)
 
 
 def main() -> None:
@@ -152,11 +237,17 @@ def main() -> None:
     parser.add_argument(
         "--intake-only", action="store_true", help="only the heightfield, every condition"
     )
+    parser.add_argument(
+        "--penetration", action="store_true", help="fixed-throttle pushes on every soil"
+    )
     args = parser.parse_args()
     seeds = list(range(args.seeds))
     n = len(seeds)
     if args.intake_only:
         print_intake_table(seeds)
+        return
+    if args.penetration:
+        print_penetration_table(seeds)
         return
 
     hf, _, _ = run_scoops(seeds, soil="heightfield", soil_options={"measure_mouth": True})

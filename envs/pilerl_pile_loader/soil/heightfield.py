@@ -39,6 +39,18 @@ rest stays in the pile. Unspent credit fades with ``MOUTH_CREDIT_TIME_S``: the g
 5 cm, so a column enters the bucket's footprint a moment after the mouth sweeps it.
 ``measure_mouth=True`` keeps the default intake and only tallies the swept volume
 (``mouth_swept_m3``), to compare the two. docs/soil_models.md has the numbers.
+
+**Resistance over the buried body (option, not the default).** By default the FEE depth
+is the cutting edge's: a curled bucket, whose edge has risen while its heel is still deep
+in the pile, meets only the shallow edge's resistance. With ``body_resistance=True`` the
+FEE depth is that of the bucket's lowest point (the heel of a curled bucket, the edge of
+a level one) below the pile surface ahead of the cutting edge, where the failure wedge
+in front of the bucket comes out, wherever that lowest point is buried (the surface one
+cell ahead of it lies above it); Reece's blade depth is the depth of the tool's deepest
+point. The same depth sets the sideways resistance. The breakout keeps the edge's depth:
+the soil a lifted bucket must raise lies over its floor and ahead of its edge, and the
+columns over the bucket are the ones its intake carved (their material is the load, whose
+weight the payload body carries). ``cutting_depth_m`` stays the edge's.
 """
 
 from __future__ import annotations
@@ -101,6 +113,7 @@ class HeightfieldSoil(SoilModel):
         *,
         intake: str = "footprint",
         measure_mouth: bool = False,
+        body_resistance: bool = False,
     ) -> None:
         """Options (``soil_options`` of the env):
 
@@ -109,6 +122,8 @@ class HeightfieldSoil(SoilModel):
         - ``measure_mouth``: tally the volume [m^3] the mouth sweeps below the pile surface
           (``mouth_swept_m3``) without changing the intake; ``intake="mouth"`` tallies it
           too.
+        - ``body_resistance``: resist the bucket over the depth of its lowest buried point,
+          not only its cutting edge's (module docstring).
         """
         super().__init__(material, pile, bucket)
         if intake not in INTAKE_MODES:
@@ -119,7 +134,13 @@ class HeightfieldSoil(SoilModel):
             raise ValueError(
                 f"HeightfieldSoil.measure_mouth: must be true or false, got {measure_mouth!r}"
             )
+        if not isinstance(body_resistance, bool):
+            raise ValueError(
+                f"HeightfieldSoil.body_resistance: must be true or false, got {body_resistance!r}"
+            )
         self.intake = intake
+        self.body_resistance = body_resistance
+        self.resistance_depth_m = 0.0  # the depth [m] the resistance was computed for
         self.measure_mouth = measure_mouth or intake == "mouth"
         self.mouth_swept_m3 = 0.0
 
@@ -229,6 +250,7 @@ class HeightfieldSoil(SoilModel):
         self.bucket_load_kg = 0.0
         self.spilled_kg = 0.0
         self._depth_m = 0.0
+        self.resistance_depth_m = 0.0
         self.mouth_swept_m3 = 0.0
         self._mouth_previous = None
         self._mouth_credit_m3 = 0.0
@@ -293,9 +315,14 @@ class HeightfieldSoil(SoilModel):
 
         edge = world[1]
         self._depth_m = self._edge_depth(edge, heading)
+        depth_m = self._depth_m
+        if self.body_resistance:
+            lowest = world[int(np.argmin(z_poly))]
+            depth_m = self._body_depth(edge, lowest, heading)
+        self.resistance_depth_m = depth_m
         force = BUCKET_RESISTANCE_FACTOR * cutting_force_n(
             self._factors,
-            depth_m=self._depth_m,
+            depth_m=depth_m,
             width_m=self.bucket.width_m,
             density_kg_m3=density,
             cohesion_pa=self.material.cohesion_pa,
@@ -459,6 +486,33 @@ class HeightfieldSoil(SoilModel):
             if 0 <= col < self.ncol and 0 <= row < self.nrow:
                 inside = True
                 total += max(float(heights[row, col]) - edge_z, 0.0)
+        return total / len(self._edge_offsets_list) if inside else 0.0
+
+    def _body_depth(self, edge: np.ndarray, lowest: np.ndarray, heading: np.ndarray) -> float:
+        """Mean depth [m] of the bucket's lowest point below the pile surface one cell ahead
+        of the cutting edge, over the edge's sample points: where the point one cell ahead
+        of the lowest point (at the same offset across the bucket) lies above the surface,
+        the bucket is not buried there and the edge's own depth counts. At least the edge's
+        depth (``_edge_depth``), equal to it for a level bucket."""
+        hx, hy = float(heading[0]), float(heading[1])
+        ahead_x, ahead_y = float(edge[0]) + hx * self.dx, float(edge[1]) + hy * self.dx
+        low_x, low_y = float(lowest[0]) + hx * self.dx, float(lowest[1]) + hy * self.dx
+        edge_z, low_z = float(edge[2]), min(float(lowest[2]), float(edge[2]))
+        heights, total, inside = self.heights, 0.0, False
+        for offset in self._edge_offsets_list:
+            col = round((ahead_x - hy * offset - self._x0) / self.dx)
+            row = round((ahead_y + hx * offset - self._y0) / self.dy)
+            if not (0 <= col < self.ncol and 0 <= row < self.nrow):
+                continue
+            inside = True
+            surface = float(heights[row, col])
+            bottom = edge_z
+            low_col = round((low_x - hy * offset - self._x0) / self.dx)
+            low_row = round((low_y + hx * offset - self._y0) / self.dy)
+            low_on_grid = 0 <= low_col < self.ncol and 0 <= low_row < self.nrow
+            if low_on_grid and float(heights[low_row, low_col]) > low_z:
+                bottom = low_z
+            total += max(surface - bottom, 0.0)
         return total / len(self._edge_offsets_list) if inside else 0.0
 
     # ------------------------------------------------------------------ MuJoCo writes
