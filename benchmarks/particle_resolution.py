@@ -2,7 +2,8 @@
 what the heightfield counts as intake against what passes its bucket mouth.
 
 One run, one thread. The scripted expert (nominal, deterministic style, noiseless sensors)
-scoops from N seeded summer starts on each soil; the same seeds everywhere.
+scoops from N seeded starts (summer unless ``--condition``) on each soil; the same seeds
+everywhere.
 
 Heightfield, first table (one row per intake, ``soil_options={"intake": ...}``):
 
@@ -20,7 +21,8 @@ Particles, second table (one row per resolution):
   the same quantity as the heightfield's intake, pile volume taken); ``vol p``: the load's
   bulk volume under its surface (``fill_measure="volume"``) at the end of the same scoops;
 - ``p/hf``: ``fill p`` over the default heightfield's fill; ``p/mouth``: over the
-  heightfield's fill with ``intake="mouth"``;
+  heightfield's fill with ``intake="mouth"``; ``p/m+b``: over the heightfield's with
+  ``intake="mouth"`` and ``body_resistance=True``;
 - ``succ``: scoops with ``fill p`` >= 0.5 that finished; ``packed``: the fill of a bucket
   packed as densely as the pile (the most a struck bucket reads at this resolution);
 - ``rt p``: simulated seconds per CPU second of this one-thread process (whole episodes,
@@ -30,6 +32,7 @@ Particles, second table (one row per resolution):
 
     python benchmarks/particle_resolution.py                       # 4, 6, 8 grains, 4 seeds
     python benchmarks/particle_resolution.py --mouth-grains 6 --seeds 2
+    python benchmarks/particle_resolution.py --mouth-grains 6 --condition winter_a
     python benchmarks/particle_resolution.py --solver-iterations 40 --mouth-grains 8
     python benchmarks/particle_resolution.py --contact-timeconst 0.004  # stiffer grains
     python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
@@ -225,6 +228,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--mouth-grains", type=float, nargs="+", default=[4.0, 6.0, 8.0])
     parser.add_argument("--seeds", type=int, default=4, help="seeded scoops per row")
+    parser.add_argument("--condition", default="summer", help="condition preset of the scoops")
     parser.add_argument(
         "--solver-iterations", type=int, default=None, help="CG iterations (default: the soil's)"
     )
@@ -250,15 +254,24 @@ def main() -> None:
         print_penetration_table(seeds)
         return
 
-    hf, _, _ = run_scoops(seeds, soil="heightfield", soil_options={"measure_mouth": True})
-    hf_mouth, _, _ = run_scoops(seeds, soil="heightfield", soil_options={"intake": "mouth"})
-    print(f"heightfield, {n} seeded summer scoops by the nominal expert")
-    header = f"{'intake':>9} {'fill':>5} {'swept':>5} {'success':>7} {'rt':>6}  fills"
+    condition = args.condition
+    hf_runs = {
+        name: run_scoops(seeds, condition, soil="heightfield", soil_options=options)[0]
+        for name, options in (
+            ("footprint", {"measure_mouth": True}),
+            ("mouth", {"intake": "mouth"}),
+            ("fp+body", {"measure_mouth": True, **BODY}),
+            ("mouth+body", {"intake": "mouth", **BODY}),
+        )
+    }
+    hf, hf_mouth, hf_mouth_body = hf_runs["footprint"], hf_runs["mouth"], hf_runs["mouth+body"]
+    print(f"heightfield, {n} seeded {condition} scoops by the nominal expert")
+    header = f"{'intake':>10} {'fill':>5} {'swept':>5} {'success':>7} {'rt':>6}  fills"
     print(header)
     print("-" * len(header))
-    for name, row in (("footprint", hf), ("mouth", hf_mouth)):
+    for name, row in hf_runs.items():
         print(
-            f"{name:>9} {row['fill']:5.3f} {row['swept']:5.3f} {row['success']:>4}/{n:<2} "
+            f"{name:>10} {row['fill']:5.3f} {row['swept']:5.3f} {row['success']:>4}/{n:<2} "
             f"{row['rt']:6.1f}  {fills_text(row['fills'])}"
         )
 
@@ -270,8 +283,8 @@ def main() -> None:
     )
     header = (
         f"{'mouth/d':>7} {'grain mm':>8} {'grains':>9} {'fill p':>6} {'vol p':>5} "
-        f"{'p/hf':>5} {'p/mouth':>7} {'succ':>5} {'packed':>6} {'rt p':>5} {'rt hf':>6} "
-        f"{'rt p/hf':>7} {'wall p':>6} {'build s':>7}  fills p"
+        f"{'p/hf':>5} {'p/mouth':>7} {'p/m+b':>5} {'succ':>5} {'packed':>6} {'rt p':>5} "
+        f"{'rt hf':>6} {'rt p/hf':>7} {'wall p':>6} {'build s':>7}  fills p"
     )
     print(header)
     print("-" * len(header))
@@ -281,13 +294,14 @@ def main() -> None:
             options["solver_iterations"] = args.solver_iterations
         if args.contact_timeconst is not None:
             options["contact_timeconst_s"] = args.contact_timeconst
-        p, build_s, env = run_scoops(seeds, soil="particles", soil_options=options)
+        p, build_s, env = run_scoops(seeds, condition, soil="particles", soil_options=options)
         soil = env.unwrapped.soil
         count = f"{soil.n_particles}+{len(soil.core)}"
         print(
             f"{soil.mouth_diameters:7.1f} {2000 * soil.radius_m:8.0f} {count:>9} "
             f"{p['fill']:6.3f} {p['volume']:5.3f} {p['fill'] / hf['fill']:5.2f} "
-            f"{p['fill'] / hf_mouth['fill']:7.2f} {p['success']:>2}/{n:<2} "
+            f"{p['fill'] / hf_mouth['fill']:7.2f} {p['fill'] / hf_mouth_body['fill']:5.2f} "
+            f"{p['success']:>2}/{n:<2} "
             f"{soil.packed_bucket_fill:6.2f} {p['rt']:5.2f} {hf['rt']:6.1f} "
             f"{p['rt'] / hf['rt']:7.3f} {p['rt_wall']:6.2f} {build_s:7.1f}  "
             f"{fills_text(p['fills'])}",

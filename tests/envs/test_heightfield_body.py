@@ -76,10 +76,11 @@ def test_a_curled_bucket_whose_heel_is_out_of_the_pile_resists_at_its_edge_depth
     assert body_depth == edge_depth
 
 
-def _push(soil_options: dict, curl_s: float, seed: int = 0) -> tuple[float, float, float]:
+def _push(soil_options: dict, curl_s: float, seed: int = 0) -> tuple[float, float, float, float]:
     """Throttle 0.6 into the pile from 1.0-1.5 m, boom held, full curl for ``curl_s`` first:
     (furthest edge position past the toe [m], the most the resistance depth exceeded the
-    edge depth [m], fill)."""
+    edge depth [m], fill, the most the bucket hinge rose above its height in the first
+    second [m])."""
     env = gym.make(
         "pilerl/PileLoading-v0",
         sensor_noise=0.0,
@@ -89,37 +90,56 @@ def _push(soil_options: dict, curl_s: float, seed: int = 0) -> tuple[float, floa
     env.reset(seed=seed)
     sim = env.unwrapped
     site, toe_x = sim.machine.cutting_edge_site, sim.soil.pile.toe_x_m
-    furthest, extra, elapsed = -np.inf, 0.0, 0.0
+    furthest, extra, elapsed, start_height, rise = -np.inf, 0.0, 0.0, None, 0.0
     while elapsed < 8.0 - 1e-9:
         bucket = 1.0 if elapsed < curl_s - 1e-9 else 0.0
-        _, _, _, _, info = env.step(np.array([0.0, bucket, 0.6], dtype=np.float32))
+        _, _, terminated, truncated, info = env.step(np.array([0.0, bucket, 0.6], np.float32))
         elapsed = info["elapsed_s"]
         furthest = max(furthest, float(sim.data.site_xpos[site][0]) - toe_x)
         extra = max(extra, sim.soil.resistance_depth_m - info["cutting_depth_m"])
+        if start_height is None and elapsed >= 1.0:
+            start_height = info["bucket_hinge_height_m"]
+        if start_height is not None:
+            rise = max(rise, info["bucket_hinge_height_m"] - start_height)
+        if terminated or truncated:
+            break
     env.close()
-    return furthest, extra, info["fill_fraction"]
+    return furthest, extra, info["fill_fraction"], rise
 
 
 def test_a_level_push_is_nearly_unchanged_by_body_resistance():
     """Held level, the bucket pitches by a few milliradians in the push, so its heel dips
     below its edge by at most millimetres: the same push within a millimetre."""
-    default, _, default_fill = _push({}, curl_s=0.0)
-    body, extra, body_fill = _push(BODY, curl_s=0.0)
+    default, _, default_fill, _ = _push({}, curl_s=0.0)
+    body, extra, body_fill, _ = _push(BODY, curl_s=0.0)
     assert body == pytest.approx(default, abs=1e-3)
     assert body_fill == pytest.approx(default_fill, abs=1e-3)
     assert extra < 0.01
 
 
-def test_the_buried_body_of_a_curled_bucket_stops_it_sooner():
-    """Curled ~0.45 rad, the default heightfield resists only the raised edge and the
-    bucket gets ~0.4 m further than level; the body's resistance holds it back."""
-    level, _, _ = _push({}, curl_s=0.0)
-    default, default_extra, _ = _push({}, curl_s=0.6)
-    body, body_extra, _ = _push(BODY, curl_s=0.6)
+def test_a_curled_bucket_rides_up_on_its_buried_underside():
+    """Curled ~0.45 rad and pushed, the bucket's floor underside wedges into the pile: its
+    heel resists deeper than its edge, and the soil's reaction on the face-down floor
+    lifts the bucket and the machine's front (as on particles, docs/soil_models.md). The
+    default heightfield resists only the raised edge, horizontally: the bucket stays low
+    and drives on into the pile."""
+    _, default_extra, _, default_rise = _push({}, curl_s=0.6)
+    _, body_extra, _, body_rise = _push(BODY, curl_s=0.6)
     assert default_extra == 0.0
     assert body_extra > 0.2  # the heel sits > 0.2 m deeper than the edge
-    assert default > level + 0.3
-    assert body < default - 0.2
+    assert default_rise < 0.02
+    assert body_rise > 0.2
+
+
+def test_the_underside_lift_follows_the_fee_for_a_face_down_blade():
+    soil = _block_soil()
+    delta = math.radians(soil.material.tool_friction_angle_deg)
+    pitch, force, edge_force = 0.45, 9000.0, 3000.0
+    ratio = soil._underside_lift_ratio(pitch, force, edge_force)
+    assert ratio == pytest.approx((force - edge_force) / math.tan(pitch + delta) / force)
+    assert soil._underside_lift_ratio(0.0, force, edge_force) == 0.0  # level: no lift
+    assert soil._underside_lift_ratio(pitch, force, force) == 0.0  # nothing below the edge
+    assert soil._underside_lift_ratio(math.pi / 2, force, edge_force) == 0.0  # past vertical
 
 
 @pytest.mark.parametrize("bad", [1, "yes", None])
