@@ -35,6 +35,7 @@ Particles, second table (one row per resolution):
     python benchmarks/particle_resolution.py --mouth-grains 6 --condition winter_a
     python benchmarks/particle_resolution.py --solver-iterations 40 --mouth-grains 8
     python benchmarks/particle_resolution.py --contact-timeconst 0.004  # stiffer grains
+    python benchmarks/particle_resolution.py --zone-scale 1.3 --mouth-grains 4 6  # larger zone
     python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
     python benchmarks/particle_resolution.py --penetration --seeds 3     # push tests
 
@@ -239,6 +240,12 @@ def main() -> None:
         help="grain contact time constant [s] (default: the soil's)",
     )
     parser.add_argument(
+        "--zone-scale",
+        type=float,
+        default=None,
+        help="particle digging zone scale (extent, half width, active depth; default 1)",
+    )
+    parser.add_argument(
         "--intake-only", action="store_true", help="only the heightfield, every condition"
     )
     parser.add_argument(
@@ -279,7 +286,7 @@ def main() -> None:
     timeconst = args.contact_timeconst or CONTACT_TIMECONST_S
     print(
         f"\nparticles, {iterations} CG iterations per physics step, contact time constant "
-        f"{timeconst} s, the same {n} starts"
+        f"{timeconst} s, zone scale {args.zone_scale or 1.0}, the same {n} starts"
     )
     header = (
         f"{'mouth/d':>7} {'grain mm':>8} {'grains':>9} {'fill p':>6} {'vol p':>5} "
@@ -294,6 +301,8 @@ def main() -> None:
             options["solver_iterations"] = args.solver_iterations
         if args.contact_timeconst is not None:
             options["contact_timeconst_s"] = args.contact_timeconst
+        if args.zone_scale is not None:
+            options["zone_scale"] = args.zone_scale
         p, build_s, env = run_scoops(seeds, condition, soil="particles", soil_options=options)
         soil = env.unwrapped.soil
         count = f"{soil.n_particles}+{len(soil.core)}"
