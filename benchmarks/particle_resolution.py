@@ -2,7 +2,8 @@
 what the heightfield counts as intake against what passes its bucket mouth.
 
 One run, one thread. The scripted expert (nominal, deterministic style, noiseless sensors)
-scoops from N seeded summer starts on each soil; the same seeds everywhere.
+scoops from N seeded starts (summer unless ``--condition``) on each soil; the same seeds
+everywhere.
 
 Heightfield, first table (one row per intake, ``soil_options={"intake": ...}``):
 
@@ -20,7 +21,8 @@ Particles, second table (one row per resolution):
   the same quantity as the heightfield's intake, pile volume taken); ``vol p``: the load's
   bulk volume under its surface (``fill_measure="volume"``) at the end of the same scoops;
 - ``p/hf``: ``fill p`` over the default heightfield's fill; ``p/mouth``: over the
-  heightfield's fill with ``intake="mouth"``;
+  heightfield's fill with ``intake="mouth"``; ``p/m+b``: over the heightfield's with
+  ``intake="mouth"`` and ``body_resistance=True``;
 - ``succ``: scoops with ``fill p`` >= 0.5 that finished; ``packed``: the fill of a bucket
   packed as densely as the pile (the most a struck bucket reads at this resolution);
 - ``rt p``: simulated seconds per CPU second of this one-thread process (whole episodes,
@@ -30,12 +32,23 @@ Particles, second table (one row per resolution):
 
     python benchmarks/particle_resolution.py                       # 4, 6, 8 grains, 4 seeds
     python benchmarks/particle_resolution.py --mouth-grains 6 --seeds 2
+    python benchmarks/particle_resolution.py --mouth-grains 6 --condition winter_a
     python benchmarks/particle_resolution.py --solver-iterations 40 --mouth-grains 8
     python benchmarks/particle_resolution.py --contact-timeconst 0.004  # stiffer grains
+    python benchmarks/particle_resolution.py --zone-scale 1.3 --mouth-grains 4 6  # larger zone
     python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
+    python benchmarks/particle_resolution.py --penetration --seeds 3     # push tests
 
 ``--intake-only`` prints only the heightfield table, for every condition preset (the
-expert's fill and success with either intake; no particles).
+expert's fill and success with either intake, without and with ``body_resistance``; no
+particles).
+
+``--penetration`` pushes the bucket into the pile with a fixed throttle (0.6, boom held)
+from seeded starts 1.0-1.5 m from the toe, level (bucket held) and curled (full bucket
+curl for the first 0.6 s, ~0.4-0.5 rad, then held), for 10 s on every soil: the
+heightfield by default, with ``body_resistance=True``, and particles at the default
+resolution. ``pen``: the furthest the cutting edge got past the toe line [m], mean over
+the seeds; ``/p``: over the particles'.
 """
 
 from __future__ import annotations
@@ -56,6 +69,12 @@ from pilerl_pile_loader.soil.particles import (  # noqa: E402
 import pilerl  # noqa: E402,F401  (registers pilerl/PileLoading-v0)
 
 ENV_ID = "pilerl/PileLoading-v0"
+PUSH_THROTTLE = 0.6  # the issue's drive-in throttle
+PUSH_SECONDS = 10.0
+PUSH_START_M = (1.0, 1.5)  # cutting edge to toe at reset [m]
+PUSH_CURLS_S = {"level": 0.0, "curled": 0.6}  # full curl command for this long first [s]
+PUSH_CONDITIONS = ("summer", "winter_a", "winter_c", "winter_d")
+BODY = {"body_resistance": True}
 
 
 def make_expert(dt: float):
@@ -110,36 +129,107 @@ def run_scoops(
     return summary, build_s, env
 
 
+def push_penetration_m(env: gym.Env, seed: int, curl_s: float) -> float:
+    """Fixed-throttle push from a seeded start: the furthest the cutting edge got past the
+    pile's toe line along world x [m] (the pile's face is normal to x)."""
+    env.reset(seed=seed)
+    sim = env.unwrapped
+    site, toe_x = sim.machine.cutting_edge_site, sim.soil.pile.toe_x_m
+    furthest, elapsed = -np.inf, 0.0
+    while elapsed < PUSH_SECONDS - 1e-9:
+        bucket = 1.0 if elapsed < curl_s - 1e-9 else 0.0
+        action = np.array([0.0, bucket, PUSH_THROTTLE], dtype=np.float32)
+        _, _, terminated, truncated, info = env.step(action)
+        elapsed = info["elapsed_s"]
+        furthest = max(furthest, float(sim.data.site_xpos[site][0]) - toe_x)
+        if terminated or truncated:
+            break
+    return furthest
+
+
+def print_penetration_table(seeds: list[int]) -> None:
+    """How far a pushed bucket gets into the pile on each soil, level and curled."""
+    soils = (
+        ("hf default", {"soil": "heightfield"}),
+        ("hf body", {"soil": "heightfield", "soil_options": BODY}),
+        ("particles", {"soil": "particles"}),
+    )
+    print(
+        f"penetration [m] past the toe, throttle {PUSH_THROTTLE}, boom held, "
+        f"{PUSH_SECONDS:.0f} s, seeds {seeds[0]}-{seeds[-1]}"
+    )
+    header = (
+        f"{'condition':>10} {'bucket':>7} "
+        + " ".join(f"{name:>10}" for name, _ in soils)
+        + f" {'default/p':>9} {'body/p':>6}  per seed (default | body | particles)"
+    )
+    print(header)
+    print("-" * len(header))
+    for condition in PUSH_CONDITIONS:
+        envs = {
+            name: gym.make(
+                ENV_ID,
+                condition=condition,
+                sensor_noise=0.0,
+                start_distance_range_m=PUSH_START_M,
+                **kwargs,
+            )
+            for name, kwargs in soils
+        }
+        for pose, curl_s in PUSH_CURLS_S.items():
+            pens = {
+                name: [push_penetration_m(env, seed, curl_s) for seed in seeds]
+                for name, env in envs.items()
+            }
+            mean = {name: float(np.mean(values)) for name, values in pens.items()}
+            per_seed = " | ".join(fills_text(values) for values in pens.values())
+            print(
+                f"{condition:>10} {pose:>7} "
+                + " ".join(f"{mean[name]:10.3f}" for name, _ in soils)
+                + f" {mean['hf default'] / mean['particles']:9.2f}"
+                + f" {mean['hf body'] / mean['particles']:6.2f}  {per_seed}",
+                flush=True,
+            )
+        for env in envs.values():
+            env.close()
+
+
 def fills_text(fills: list[float]) -> str:
     return ", ".join(f"{f:.2f}" for f in fills)
 
 
 def print_intake_table(seeds: list[int]) -> None:
-    """The heightfield's two intakes on every condition preset: mean fill and success."""
+    """The heightfield's two intakes, without and with resistance over the buried body, on
+    every condition preset: mean fill, success and episode length."""
     from pilerl_pile_loader.conditions import CONDITIONS
 
     n = len(seeds)
-    print(f"heightfield, {n} seeded scoops by the nominal expert per condition")
-    header = (
-        f"{'condition':>10} {'fill fp':>7} {'swept':>5} {'succ fp':>7} "
-        f"{'fill mouth':>10} {'succ mouth':>10}"
+    configs = (
+        ("fp", {"measure_mouth": True}),
+        ("mouth", {"intake": "mouth"}),
+        ("fp+body", {"measure_mouth": True, **BODY}),
+        ("mouth+body", {"intake": "mouth", **BODY}),
     )
+    print(
+        f"heightfield, {n} seeded scoops by the nominal expert per condition: "
+        "fill / success / mean episode s (swept: what passed the mouth, fp)"
+    )
+    header = f"{'condition':>10} {'swept':>5} " + " ".join(f"{name:>17}" for name, _ in configs)
     print(header)
     print("-" * len(header))
     for condition in CONDITIONS:
-        fp, _, _ = run_scoops(seeds, condition, soil_options={"measure_mouth": True})
-        mouth, _, _ = run_scoops(seeds, condition, soil_options={"intake": "mouth"})
-        print(
-            f"{condition:>10} {fp['fill']:7.3f} {fp['swept']:5.3f} {fp['success']:>4}/{n:<2} "
-            f"{mouth['fill']:10.3f} {mouth['success']:>7}/{n:<2}",
-            flush=True,
+        rows = {name: run_scoops(seeds, condition, soil_options=o)[0] for name, o in configs}
+        cells = " ".join(
+            f"{r['fill']:5.3f} {r['success']:>2}/{n:<2} {r['sim_s']:5.1f}" for r in rows.values()
         )
+        print(f"{condition:>10} {rows['fp']['swept']:5.3f} {cells}", flush=True)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--mouth-grains", type=float, nargs="+", default=[4.0, 6.0, 8.0])
     parser.add_argument("--seeds", type=int, default=4, help="seeded scoops per row")
+    parser.add_argument("--condition", default="summer", help="condition preset of the scoops")
     parser.add_argument(
         "--solver-iterations", type=int, default=None, help="CG iterations (default: the soil's)"
     )
@@ -150,7 +240,16 @@ def main() -> None:
         help="grain contact time constant [s] (default: the soil's)",
     )
     parser.add_argument(
+        "--zone-scale",
+        type=float,
+        default=None,
+        help="particle digging zone scale (extent, half width, active depth; default 1)",
+    )
+    parser.add_argument(
         "--intake-only", action="store_true", help="only the heightfield, every condition"
+    )
+    parser.add_argument(
+        "--penetration", action="store_true", help="fixed-throttle pushes on every soil"
     )
     args = parser.parse_args()
     seeds = list(range(args.seeds))
@@ -158,16 +257,28 @@ def main() -> None:
     if args.intake_only:
         print_intake_table(seeds)
         return
+    if args.penetration:
+        print_penetration_table(seeds)
+        return
 
-    hf, _, _ = run_scoops(seeds, soil="heightfield", soil_options={"measure_mouth": True})
-    hf_mouth, _, _ = run_scoops(seeds, soil="heightfield", soil_options={"intake": "mouth"})
-    print(f"heightfield, {n} seeded summer scoops by the nominal expert")
-    header = f"{'intake':>9} {'fill':>5} {'swept':>5} {'success':>7} {'rt':>6}  fills"
+    condition = args.condition
+    hf_runs = {
+        name: run_scoops(seeds, condition, soil="heightfield", soil_options=options)[0]
+        for name, options in (
+            ("footprint", {"measure_mouth": True}),
+            ("mouth", {"intake": "mouth"}),
+            ("fp+body", {"measure_mouth": True, **BODY}),
+            ("mouth+body", {"intake": "mouth", **BODY}),
+        )
+    }
+    hf, hf_mouth, hf_mouth_body = hf_runs["footprint"], hf_runs["mouth"], hf_runs["mouth+body"]
+    print(f"heightfield, {n} seeded {condition} scoops by the nominal expert")
+    header = f"{'intake':>10} {'fill':>5} {'swept':>5} {'success':>7} {'rt':>6}  fills"
     print(header)
     print("-" * len(header))
-    for name, row in (("footprint", hf), ("mouth", hf_mouth)):
+    for name, row in hf_runs.items():
         print(
-            f"{name:>9} {row['fill']:5.3f} {row['swept']:5.3f} {row['success']:>4}/{n:<2} "
+            f"{name:>10} {row['fill']:5.3f} {row['swept']:5.3f} {row['success']:>4}/{n:<2} "
             f"{row['rt']:6.1f}  {fills_text(row['fills'])}"
         )
 
@@ -175,12 +286,12 @@ def main() -> None:
     timeconst = args.contact_timeconst or CONTACT_TIMECONST_S
     print(
         f"\nparticles, {iterations} CG iterations per physics step, contact time constant "
-        f"{timeconst} s, the same {n} starts"
+        f"{timeconst} s, zone scale {args.zone_scale or 1.0}, the same {n} starts"
     )
     header = (
         f"{'mouth/d':>7} {'grain mm':>8} {'grains':>9} {'fill p':>6} {'vol p':>5} "
-        f"{'p/hf':>5} {'p/mouth':>7} {'succ':>5} {'packed':>6} {'rt p':>5} {'rt hf':>6} "
-        f"{'rt p/hf':>7} {'wall p':>6} {'build s':>7}  fills p"
+        f"{'p/hf':>5} {'p/mouth':>7} {'p/m+b':>5} {'succ':>5} {'packed':>6} {'rt p':>5} "
+        f"{'rt hf':>6} {'rt p/hf':>7} {'wall p':>6} {'build s':>7}  fills p"
     )
     print(header)
     print("-" * len(header))
@@ -190,13 +301,16 @@ def main() -> None:
             options["solver_iterations"] = args.solver_iterations
         if args.contact_timeconst is not None:
             options["contact_timeconst_s"] = args.contact_timeconst
-        p, build_s, env = run_scoops(seeds, soil="particles", soil_options=options)
+        if args.zone_scale is not None:
+            options["zone_scale"] = args.zone_scale
+        p, build_s, env = run_scoops(seeds, condition, soil="particles", soil_options=options)
         soil = env.unwrapped.soil
         count = f"{soil.n_particles}+{len(soil.core)}"
         print(
             f"{soil.mouth_diameters:7.1f} {2000 * soil.radius_m:8.0f} {count:>9} "
             f"{p['fill']:6.3f} {p['volume']:5.3f} {p['fill'] / hf['fill']:5.2f} "
-            f"{p['fill'] / hf_mouth['fill']:7.2f} {p['success']:>2}/{n:<2} "
+            f"{p['fill'] / hf_mouth['fill']:7.2f} {p['fill'] / hf_mouth_body['fill']:5.2f} "
+            f"{p['success']:>2}/{n:<2} "
             f"{soil.packed_bucket_fill:6.2f} {p['rt']:5.2f} {hf['rt']:6.1f} "
             f"{p['rt'] / hf['rt']:7.3f} {p['rt_wall']:6.2f} {build_s:7.1f}  "
             f"{fills_text(p['fills'])}",

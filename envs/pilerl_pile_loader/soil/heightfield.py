@@ -39,6 +39,24 @@ rest stays in the pile. Unspent credit fades with ``MOUTH_CREDIT_TIME_S``: the g
 5 cm, so a column enters the bucket's footprint a moment after the mouth sweeps it.
 ``measure_mouth=True`` keeps the default intake and only tallies the swept volume
 (``mouth_swept_m3``), to compare the two. docs/soil_models.md has the numbers.
+
+**Resistance over the buried body (option, not the default).** By default the FEE depth
+is the cutting edge's: a curled bucket, whose edge has risen while its heel is still deep
+in the pile, meets only the shallow edge's resistance. With ``body_resistance=True`` the
+FEE depth is that of the bucket's lowest point (the heel of a curled bucket, the edge of
+a level one) below the pile surface ahead of the cutting edge, where the failure wedge
+in front of the bucket comes out, wherever that lowest point is buried (the surface one
+cell ahead of it lies above it); Reece's blade depth is the depth of the tool's deepest
+point. The same depth sets the sideways resistance. The resistance beyond the edge's acts
+on the floor's underside, which a curled bucket turns face-down and forward (rake = the
+bucket's pitch): the FEE puts the soil's reaction on a blade of rake beta and tool
+friction delta at cot(beta + delta) of its horizontal part vertically, here upward, so
+the push damper acts along a direction slanted down by that ratio (capped so that its
+horizontal part is the FEE force): pushed, a curled bucket rides up on the pile, as it
+does on particles. The breakout keeps the edge's depth:
+the soil a lifted bucket must raise lies over its floor and ahead of its edge, and the
+columns over the bucket are the ones its intake carved (their material is the load, whose
+weight the payload body carries). ``cutting_depth_m`` stays the edge's.
 """
 
 from __future__ import annotations
@@ -101,6 +119,7 @@ class HeightfieldSoil(SoilModel):
         *,
         intake: str = "footprint",
         measure_mouth: bool = False,
+        body_resistance: bool = False,
     ) -> None:
         """Options (``soil_options`` of the env):
 
@@ -109,6 +128,8 @@ class HeightfieldSoil(SoilModel):
         - ``measure_mouth``: tally the volume [m^3] the mouth sweeps below the pile surface
           (``mouth_swept_m3``) without changing the intake; ``intake="mouth"`` tallies it
           too.
+        - ``body_resistance``: resist the bucket over the depth of its lowest buried point,
+          not only its cutting edge's (module docstring).
         """
         super().__init__(material, pile, bucket)
         if intake not in INTAKE_MODES:
@@ -119,7 +140,13 @@ class HeightfieldSoil(SoilModel):
             raise ValueError(
                 f"HeightfieldSoil.measure_mouth: must be true or false, got {measure_mouth!r}"
             )
+        if not isinstance(body_resistance, bool):
+            raise ValueError(
+                f"HeightfieldSoil.body_resistance: must be true or false, got {body_resistance!r}"
+            )
         self.intake = intake
+        self.body_resistance = body_resistance
+        self.resistance_depth_m = 0.0  # the depth [m] the resistance was computed for
         self.measure_mouth = measure_mouth or intake == "mouth"
         self.mouth_swept_m3 = 0.0
 
@@ -229,6 +256,7 @@ class HeightfieldSoil(SoilModel):
         self.bucket_load_kg = 0.0
         self.spilled_kg = 0.0
         self._depth_m = 0.0
+        self.resistance_depth_m = 0.0
         self.mouth_swept_m3 = 0.0
         self._mouth_previous = None
         self._mouth_credit_m3 = 0.0
@@ -293,15 +321,45 @@ class HeightfieldSoil(SoilModel):
 
         edge = world[1]
         self._depth_m = self._edge_depth(edge, heading)
-        force = BUCKET_RESISTANCE_FACTOR * cutting_force_n(
+        depth_m, lift_ratio = self._depth_m, 0.0
+        force = self._resistance_n(depth_m)
+        if self.body_resistance:
+            lowest = world[int(np.argmin(z_poly))]
+            depth_m = self._body_depth(edge, lowest, heading)
+            edge_force = force
+            force = self._resistance_n(depth_m)
+            lift_ratio = self._underside_lift_ratio(pitch, force, edge_force)
+        self.resistance_depth_m = depth_m
+        self._write_resistance(
+            force, heading, self.breakout_force_n(self._depth_m), lift_ratio=lift_ratio
+        )
+        self._write_payload()
+
+    def _resistance_n(self, depth_m: float) -> float:
+        """Horizontal resistance [N] of the bucket meeting the pile ``depth_m`` deep."""
+        return BUCKET_RESISTANCE_FACTOR * cutting_force_n(
             self._factors,
-            depth_m=self._depth_m,
+            depth_m=depth_m,
             width_m=self.bucket.width_m,
-            density_kg_m3=density,
+            density_kg_m3=self.material.density_kg_m3,
             cohesion_pa=self.material.cohesion_pa,
         )
-        self._write_resistance(force, heading, self.breakout_force_n(self._depth_m))
-        self._write_payload()
+
+    def _underside_lift_ratio(self, pitch_rad: float, force_n: float, edge_force_n: float) -> float:
+        """Upward over horizontal soil force on a curled bucket (module docstring).
+
+        The resistance beyond the edge's (``force_n - edge_force_n``) acts on the floor's
+        underside, a blade facing forward-down at rake ``pitch_rad``: the soil's reaction
+        leans up by cot(pitch + delta) of its horizontal part (the FEE's vertical
+        component for a blade of rake beta and tool friction delta, McKyes 1985, with the
+        blade turned face-down)."""
+        body_n = force_n - edge_force_n
+        if force_n <= 0.0 or body_n <= 0.0 or pitch_rad <= 0.0:
+            return 0.0
+        angle = pitch_rad + math.radians(self.material.tool_friction_angle_deg)
+        if angle >= math.pi / 2:
+            return 0.0
+        return body_n / math.tan(angle) / force_n
 
     def _window(
         self, x_min: float, x_max: float, y_min: float, y_max: float
@@ -461,6 +519,33 @@ class HeightfieldSoil(SoilModel):
                 total += max(float(heights[row, col]) - edge_z, 0.0)
         return total / len(self._edge_offsets_list) if inside else 0.0
 
+    def _body_depth(self, edge: np.ndarray, lowest: np.ndarray, heading: np.ndarray) -> float:
+        """Mean depth [m] of the bucket's lowest point below the pile surface one cell ahead
+        of the cutting edge, over the edge's sample points: where the point one cell ahead
+        of the lowest point (at the same offset across the bucket) lies above the surface,
+        the bucket is not buried there and the edge's own depth counts. At least the edge's
+        depth (``_edge_depth``), equal to it for a level bucket."""
+        hx, hy = float(heading[0]), float(heading[1])
+        ahead_x, ahead_y = float(edge[0]) + hx * self.dx, float(edge[1]) + hy * self.dx
+        low_x, low_y = float(lowest[0]) + hx * self.dx, float(lowest[1]) + hy * self.dx
+        edge_z, low_z = float(edge[2]), min(float(lowest[2]), float(edge[2]))
+        heights, total, inside = self.heights, 0.0, False
+        for offset in self._edge_offsets_list:
+            col = round((ahead_x - hy * offset - self._x0) / self.dx)
+            row = round((ahead_y + hx * offset - self._y0) / self.dy)
+            if not (0 <= col < self.ncol and 0 <= row < self.nrow):
+                continue
+            inside = True
+            surface = float(heights[row, col])
+            bottom = edge_z
+            low_col = round((low_x - hy * offset - self._x0) / self.dx)
+            low_row = round((low_y + hx * offset - self._y0) / self.dy)
+            low_on_grid = 0 <= low_col < self.ncol and 0 <= low_row < self.nrow
+            if low_on_grid and float(heights[low_row, low_col]) > low_z:
+                bottom = low_z
+            total += max(surface - bottom, 0.0)
+        return total / len(self._edge_offsets_list) if inside else 0.0
+
     # ------------------------------------------------------------------ MuJoCo writes
     def breakout_force_n(self, depth_m: float) -> float:
         """Resistance [N] of the pile to lifting the bucket floor ``depth_m`` below its surface.
@@ -483,14 +568,27 @@ class HeightfieldSoil(SoilModel):
         column = gamma * width * floor_m * depth_m - self.bucket_load_kg * GRAVITY_M_S2
         return shear + max(column, 0.0)
 
-    def _write_resistance(self, force_n: float, heading: np.ndarray, breakout_n: float) -> None:
+    def _write_resistance(
+        self, force_n: float, heading: np.ndarray, breakout_n: float, *, lift_ratio: float = 0.0
+    ) -> None:
+        """Caps and directions of the three soil dampers. ``force_n``: horizontal
+        resistance [N]; ``lift_ratio``: upward over horizontal (0: horizontal only); the
+        push damper then acts along the slanted direction, capped so that its horizontal
+        part is ``force_n``."""
         gear, forcerange, biasprm = self._gear, self._forcerange, self._biasprm
         to_bucket = self._xmat[self.machine.bucket_body].reshape(3, 3).T
-        gear[self._push, :3] = to_bucket @ np.array([heading[0], heading[1], 0.0])
+        if lift_ratio > 0.0:
+            slant = math.hypot(1.0, lift_ratio)
+            push = np.array([heading[0], heading[1], -lift_ratio]) / slant  # forward-down
+            gear[self._push, :3] = to_bucket @ push
+            push_n = force_n * slant
+        else:
+            gear[self._push, :3] = to_bucket @ np.array([heading[0], heading[1], 0.0])
+            push_n = force_n
         gear[self._side, :3] = to_bucket @ np.array([-heading[1], heading[0], 0.0])
         gear[self._lift, :3] = to_bucket @ UP
-        forcerange[self._push] = (-force_n, 0.0)
-        biasprm[self._push, 2] = -force_n / YIELD_SPEED_M_S
+        forcerange[self._push] = (-push_n, 0.0)
+        biasprm[self._push, 2] = -push_n / YIELD_SPEED_M_S
         side = SIDE_RATIO * force_n
         forcerange[self._side] = (-side, side)
         biasprm[self._side, 2] = -side / YIELD_SPEED_M_S

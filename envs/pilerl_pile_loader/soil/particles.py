@@ -172,6 +172,7 @@ class ParticleSoil(SoilModel):
         solver_iterations: int = SOLVER_ITERATIONS,
         fill_measure: str = "count",
         contact_timeconst_s: float = CONTACT_TIMECONST_S,
+        zone_scale: float = 1.0,
     ) -> None:
         """Options (``soil_options`` of the env), the resolution:
 
@@ -189,6 +190,10 @@ class ParticleSoil(SoilModel):
           neighbours by about (F / m) * tau^2, so the lighter grains of a finer pile sink
           deeper into each other under the same bucket force; MuJoCo integrates no stiffer
           than 2 physics steps (0.004 s at 500 Hz). docs/soil_models.md has its effect.
+        - ``zone_scale``: scales the digging zone's extent behind the toe, its half width
+          and its active depth (``PARTICLE_ZONE_DEPTH_M``, ``PARTICLE_ZONE_HALF_WIDTH_M``,
+          ``ACTIVE_DEPTH_M``); above 1 the grains the bucket pushes meet the zone's walls
+          and the static core later, at the cost of more grains.
         """
         super().__init__(material, pile, bucket)
         if not (isinstance(max_particles, int) and 20 <= max_particles <= 5000):
@@ -220,6 +225,14 @@ class ParticleSoil(SoilModel):
                 "ParticleSoil.contact_timeconst_s: must be a number in [0.002, 0.1] s, "
                 f"got {contact_timeconst_s!r}"
             )
+        if isinstance(zone_scale, bool) or not (
+            isinstance(zone_scale, int | float) and 0.5 <= zone_scale <= 2.0
+        ):
+            raise ValueError(
+                f"ParticleSoil.zone_scale: must be a number in [0.5, 2], got {zone_scale!r}"
+            )
+        self.zone_scale = float(zone_scale)
+        self.active_depth_m = ACTIVE_DEPTH_M * self.zone_scale
         self.fill_measure = fill_measure
         self.contact_timeconst_s = float(contact_timeconst_s)
         self.max_particles = max_particles
@@ -239,13 +252,14 @@ class ParticleSoil(SoilModel):
     # ------------------------------------------------------------------ build
     def add_to_spec(self, spec: mujoco.MjSpec) -> None:
         pile = self.pile
-        self.x_back_m = pile.toe_x_m + min(PARTICLE_ZONE_DEPTH_M, pile.length_m)
-        self.half_width_m = min(PARTICLE_ZONE_HALF_WIDTH_M, pile.half_width_m)
+        scale = self.zone_scale
+        self.x_back_m = pile.toe_x_m + min(PARTICLE_ZONE_DEPTH_M * scale, pile.length_m)
+        self.half_width_m = min(PARTICLE_ZONE_HALF_WIDTH_M * scale, pile.half_width_m)
         self.radius_m, sites = self._fill_lattice()
         # the walls go snug against the lattice, so that no grain can slump into a gap
         self.x_back_m = float(sites[:, 0].max()) + self.radius_m
         self.half_width_m = float(np.abs(sites[:, 1]).max()) + self.radius_m
-        moving = self._depth_below_surface(sites) <= ACTIVE_DEPTH_M
+        moving = self._depth_below_surface(sites) <= self.active_depth_m
         self.lattice, self.core = sites[moving], sites[~moving]
         self.zone_volume_m3 = self._zone_volume_m3()
         self.n_particles = len(self.lattice)
@@ -318,14 +332,14 @@ class ParticleSoil(SoilModel):
         ys = np.arange(-self.half_width_m, self.half_width_m, VOLUME_GRID_M) + VOLUME_GRID_M / 2
         grid_x, grid_y = np.meshgrid(xs, ys)
         heights = self.pile.surface_height(grid_x, grid_y, self.repose_angle_rad)
-        return float(np.minimum(heights, ACTIVE_DEPTH_M).sum() * VOLUME_GRID_M**2)
+        return float(np.minimum(heights, self.active_depth_m).sum() * VOLUME_GRID_M**2)
 
     def _fill_lattice(self) -> tuple[float, np.ndarray]:
         """Grain radius [m] and lattice sites (N, 3) [m] filling the zone, with at most
         ``max_particles`` sites in the moving layer."""
         radius = self.mouth_length_m / (2.0 * self.mouth_grains)
         sites = self._hcp_lattice(radius)
-        while np.count_nonzero(self._depth_below_surface(sites) <= ACTIVE_DEPTH_M) > (
+        while np.count_nonzero(self._depth_below_surface(sites) <= self.active_depth_m) > (
             self.max_particles
         ):
             radius *= RADIUS_GROWTH
