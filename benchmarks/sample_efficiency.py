@@ -98,39 +98,50 @@ def run_one(args: argparse.Namespace, method: str, seed: int) -> None:
     wall_s = time.perf_counter() - started
     bench = run_dir / BENCH_FILE
     invocations = json.loads(bench.read_text())["invocations_s"] if bench.exists() else []
-    write_text_atomic(bench, json.dumps({"invocations_s": [*invocations, wall_s]}))
+    record = {"invocations_s": [*invocations, wall_s], "scoops_budget": args.scoops}
+    write_text_atomic(bench, json.dumps(record))
     print(f"{method} seed {seed}: {wall_s:.0f} s")
 
 
 # ---------------------------------------------------------------------- the report
-def load_runs(out: Path, methods: list[str]) -> dict[str, list[dict]]:
-    """Per method, every finished run: its evaluations, results and wall time."""
+def load_runs(out: Path, methods: list[str]) -> tuple[dict[str, list[dict]], dict[str, list[int]]]:
+    """Per method, every finished run (its evaluations, results, wall time and configured
+    scoop budget), and the seeds of the runs begun but not finished."""
     runs: dict[str, list[dict]] = {}
+    unfinished: dict[str, list[int]] = {}
     for method in methods:
         for run_dir in sorted((out / method).glob("seed*")):
+            seed = int(run_dir.name.removeprefix("seed"))
             if not (run_dir / "results.json").exists():
+                unfinished.setdefault(method, []).append(seed)
                 continue
             bench = run_dir / BENCH_FILE
+            record = json.loads(bench.read_text()) if bench.exists() else {}
             runs.setdefault(method, []).append(
                 {
-                    "seed": int(run_dir.name.removeprefix("seed")),
+                    "seed": seed,
                     "evaluations": json.loads((run_dir / "evaluations.json").read_text()),
                     "results": json.loads((run_dir / "results.json").read_text()),
-                    "wall_s": sum(json.loads(bench.read_text())["invocations_s"])
-                    if bench.exists()
-                    else None,
+                    "wall_s": sum(record["invocations_s"]) if record else None,
+                    # runs from before it was recorded: None
+                    "scoops_budget": record.get("scoops_budget"),
                 }
             )
-    return runs
+    return runs, unfinished
 
 
 def summarise_run(run: dict) -> dict:
+    """One run's numbers. ``scoops`` is the count reached (the run stops at the first
+    batch that reaches its budget, so a few more); the winter AUC is over the configured
+    budget where recorded (the same span for every seed), else over the count reached."""
     results = run["results"]
-    budget = int(results["scoops"])
+    reached = int(results["scoops"])
+    budget = run["scoops_budget"] or reached
     winter, summer = curve(run["evaluations"], "winter"), curve(run["evaluations"], "summer")
     summary = {
         "seed": run["seed"],
-        "scoops": budget,
+        "scoops_budget": run["scoops_budget"],
+        "scoops": reached,
         "frames": results["frames"],
         "scoops_to_90": scoops_to(*winter, THRESHOLD),
         "winter_auc": area_under_curve(*winter, budget),
@@ -146,9 +157,8 @@ def summarise_run(run: dict) -> dict:
         },
     }
     for at in REPORT_SCOOPS:
-        reached = budget >= at
-        summary[f"winter_at_{at}"] = success_at(*winter, at) if reached else None
-        summary[f"summer_at_{at}"] = success_at(*summer, at) if reached else None
+        summary[f"winter_at_{at}"] = success_at(*winter, at) if reached >= at else None
+        summary[f"summer_at_{at}"] = success_at(*summer, at) if reached >= at else None
     return summary
 
 
@@ -161,7 +171,7 @@ def _iqm_ci(values: list[float]) -> str:
 
 def method_row(method: str, summaries: list[dict]) -> dict:
     """The table row: censored scoops-to-90 count as the run's budget (shown as '>')."""
-    budget = min(s["scoops"] for s in summaries)
+    budgets = sorted({s["scoops_budget"] for s in summaries if s["scoops_budget"] is not None})
     to90 = [s["scoops_to_90"] if s["scoops_to_90"] is not None else s["scoops"] for s in summaries]
     per_seed = ", ".join(
         str(s["scoops_to_90"]) if s["scoops_to_90"] is not None else f">{s['scoops']}"
@@ -175,7 +185,8 @@ def method_row(method: str, summaries: list[dict]) -> dict:
     row = {
         "method": method,
         "seeds": len(summaries),
-        "scoops_budget": budget,
+        "scoops_budget": budgets[0] if len(budgets) == 1 else budgets or None,  # configured
+        "min_scoops_reached": min(s["scoops"] for s in summaries),
         "scoops_to_90_per_seed": per_seed,
         "scoops_to_90_iqm_ci": _iqm_ci(to90)
         if most_reached
@@ -230,8 +241,8 @@ def plot(summaries: dict[str, list[dict]], path: Path) -> Path:
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
     for index, (method, runs) in enumerate(summaries.items()):
         color = f"C{index}"
-        budget = min(r["scoops"] for r in runs)
-        grid = np.unique(np.concatenate([[0], np.linspace(0, budget, 41).astype(int)]))
+        reached = min(r["scoops"] for r in runs)  # every seed's curve is known up to here
+        grid = np.unique(np.concatenate([[0], np.linspace(0, reached, 41).astype(int)]))
         for ax, group in zip(axes, ("winter", "summer"), strict=True):
             curves = []
             for r in runs:
@@ -266,7 +277,7 @@ def plot(summaries: dict[str, list[dict]], path: Path) -> Path:
 
 
 def report(args: argparse.Namespace) -> None:
-    runs = load_runs(args.out, args.methods)
+    runs, unfinished = load_runs(args.out, args.methods)
     if not runs:
         raise SystemExit(f"no finished runs under {args.out}")
     summaries = {m: [summarise_run(r) for r in rs] for m, rs in runs.items()}
@@ -280,10 +291,18 @@ def report(args: argparse.Namespace) -> None:
         table(rows)
         + f"\n\nThe clone before fine-tuning (0 scoops, the same held-out starts): {clone}.\n"
     )
+    partial = [
+        f"{m}: seeds {unfinished[m]} unfinished, not in the table"
+        for m in args.methods
+        if unfinished.get(m)
+    ] + [f"{m}: no finished run" for m in args.methods if m not in runs]
+    if partial:
+        text += "\n**Partial results** (the benchmark is still running): " + "; ".join(partial)
+        text += ".\n"
     write_text_atomic(args.report / "sample_efficiency.md", text)
     write_text_atomic(
         args.report / "sample_efficiency.json",
-        json.dumps({"rows": rows, "runs": summaries}, indent=1),
+        json.dumps({"rows": rows, "runs": summaries, "unfinished": unfinished}, indent=1),
     )
     plot(summaries, args.report / "sample_efficiency.png")
     print(text)
