@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import time
 from pathlib import Path
 
@@ -57,6 +58,11 @@ THRESHOLD = 0.9  # the target: winter success >= 90%
 REPORT_SCOOPS = (40, 200)  # the table's columns
 AT_SCOOPS = (10, 20, 40, 80, 120, 200)
 BENCH_FILE = "benchmark.json"  # per run: wall time of every invocation
+# every last.ckpt restarts the 8 simulators mid-scoop (so a resumed run is the same run),
+# dropping on average half a scoop each (8 x ~200 frames, scoops here take ~400): about 16%
+# of the frames at the finetune default of 10,000; 20,000 halves that, and a kill loses at
+# most ~50 scoops of work
+CHECKPOINT_EVERY_FRAMES = 20_000
 
 
 def run_config(args: argparse.Namespace, method: str, seed: int, run_dir: Path) -> FinetuneConfig:
@@ -78,6 +84,7 @@ def run_config(args: argparse.Namespace, method: str, seed: int, run_dir: Path) 
         f"evaluation.seed={args.eval_seed}",
         f"evaluation.final_seed={args.eval_seed}",  # the same starts: evaluations reused
         "logger=csv",
+        f"checkpoint_every_frames={args.checkpoint_every_frames}",
         f"output_dir={run_dir}",
         *[o.split(":", 1)[1] for o in args.override if o.split(":", 1)[0] in (method, "all")],
     ]
@@ -86,21 +93,43 @@ def run_config(args: argparse.Namespace, method: str, seed: int, run_dir: Path) 
     return OmegaConf.to_object(cfg)
 
 
+def process_age_s() -> float:
+    """Seconds since this process started (Linux: /proc/self/stat's start time)."""
+    start_ticks = int(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+    uptime_s = float(Path("/proc/uptime").read_text().split()[0])
+    return uptime_s - start_ticks / os.sysconf("SC_CLK_TCK")
+
+
+PHASES = ("collection_s", "update_s", "evaluation_s")  # results.json's totals of a run
+
+
 def run_one(args: argparse.Namespace, method: str, seed: int) -> None:
+    """Fine-tune one (method, seed) up to ``--scoops`` (or skip it), then print where this
+    invocation's time went: composing the config, collection, updates, evaluations, and
+    the rest (building the learner and envs, checkpoints, curve plots)."""
     run_dir = args.out / method / f"seed{seed}"
     results = run_dir / "results.json"
     if results.exists() and json.loads(results.read_text())["scoops"] >= args.scoops:
         print(f"{method} seed {seed}: done, skipped")
         return
-    config = run_config(args, method, seed, run_dir)
+    before = json.loads(results.read_text()) if results.exists() else {}
     started = time.perf_counter()
+    config = run_config(args, method, seed, run_dir)
+    compose_s = time.perf_counter() - started
     finetune(config, run_dir, progress=False)
     wall_s = time.perf_counter() - started
     bench = run_dir / BENCH_FILE
     invocations = json.loads(bench.read_text())["invocations_s"] if bench.exists() else []
     record = {"invocations_s": [*invocations, wall_s], "scoops_budget": args.scoops}
     write_text_atomic(bench, json.dumps(record))
-    print(f"{method} seed {seed}: {wall_s:.0f} s")
+    after = json.loads(results.read_text())
+    phases = {"compose_s": compose_s}
+    phases.update({p: after[p] - before.get(p, 0.0) for p in PHASES})
+    phases["other_s"] = wall_s - sum(phases.values())
+    print(
+        f"{method} seed {seed}: {wall_s:.0f} s, {after['scoops']} scoops, {after['frames']} "
+        "frames; " + ", ".join(f"{k.removesuffix('_s')} {v:.1f} s" for k, v in phases.items())
+    )
 
 
 # ---------------------------------------------------------------------- the report
@@ -318,6 +347,12 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=2, help="per condition")
     parser.add_argument("--eval-seed", type=int, default=1000, help="held-out starts")
     parser.add_argument("--curriculum", default="winter_mix")
+    parser.add_argument(
+        "--checkpoint-every-frames",
+        type=int,
+        default=CHECKPOINT_EVERY_FRAMES,
+        help="last.ckpt interval; each one restarts the simulators, ending their scoops unfinished",
+    )
     parser.add_argument("--out", type=Path, default=Path("outputs/sample_efficiency"))
     parser.add_argument("--report", type=Path, default=ROOT / "docs/results/finetune")
     parser.add_argument("--shard", default="0/1", help="i/n: run every n-th (method, seed)")
@@ -344,6 +379,7 @@ def main() -> None:
         logging.basicConfig(level=logging.WARNING)
         limit_threads(1)
         register_configs()
+        print(f"startup (process start, imports, configs): {process_age_s():.1f} s")
         shard, shards = (int(x) for x in args.shard.split("/"))
         pairs = [(m, s) for s in range(args.seeds) for m in args.methods]  # seed-major
         for method, seed in pairs[shard::shards]:
