@@ -41,6 +41,8 @@ from pilerl.config import register_configs
 from pilerl.figures import legend_outside, plt, save_figure
 from pilerl.io import write_text_atomic
 from pilerl.rl import FinetuneConfig, finetune
+from pilerl.rl.finetuning import RUN_CHECKPOINT
+from pilerl.rl.run_checkpoint import load_run
 from pilerl.rl.sample_efficiency import (
     area_under_curve,
     curve,
@@ -100,7 +102,17 @@ def process_age_s() -> float:
     return uptime_s - start_ticks / os.sysconf("SC_CLK_TCK")
 
 
-PHASES = ("collection_s", "update_s", "evaluation_s")  # results.json's totals of a run
+PHASES = ("collection_s", "update_s", "evaluation_s")  # a run's totals (last.ckpt, results)
+
+
+def phase_totals(run_dir: Path) -> dict[str, float]:
+    """The run's phase totals where this invocation starts: those of its ``last.ckpt``
+    (what a resumed run continues from; work after it was lost), else none."""
+    checkpoint = run_dir / RUN_CHECKPOINT
+    if not checkpoint.exists():
+        return {}
+    progress, _, _ = load_run(checkpoint)
+    return {p: float(progress[p]) for p in PHASES}
 
 
 def run_one(args: argparse.Namespace, method: str, seed: int) -> None:
@@ -112,7 +124,7 @@ def run_one(args: argparse.Namespace, method: str, seed: int) -> None:
     if results.exists() and json.loads(results.read_text())["scoops"] >= args.scoops:
         print(f"{method} seed {seed}: done, skipped")
         return
-    before = json.loads(results.read_text()) if results.exists() else {}
+    before = phase_totals(run_dir)
     started = time.perf_counter()
     config = run_config(args, method, seed, run_dir)
     compose_s = time.perf_counter() - started
