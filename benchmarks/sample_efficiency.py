@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import time
 from pathlib import Path
 
@@ -40,6 +41,8 @@ from pilerl.config import register_configs
 from pilerl.figures import legend_outside, plt, save_figure
 from pilerl.io import write_text_atomic
 from pilerl.rl import FinetuneConfig, finetune
+from pilerl.rl.finetuning import RUN_CHECKPOINT
+from pilerl.rl.run_checkpoint import load_run
 from pilerl.rl.sample_efficiency import (
     area_under_curve,
     curve,
@@ -57,6 +60,11 @@ THRESHOLD = 0.9  # the target: winter success >= 90%
 REPORT_SCOOPS = (40, 200)  # the table's columns
 AT_SCOOPS = (10, 20, 40, 80, 120, 200)
 BENCH_FILE = "benchmark.json"  # per run: wall time of every invocation
+# every last.ckpt restarts the 8 simulators mid-scoop (so a resumed run is the same run),
+# dropping on average half a scoop each (8 x ~200 frames, scoops here take ~400): about 16%
+# of the frames at the finetune default of 10,000; 20,000 halves that, and a kill loses at
+# most ~50 scoops of work
+CHECKPOINT_EVERY_FRAMES = 20_000
 
 
 def run_config(args: argparse.Namespace, method: str, seed: int, run_dir: Path) -> FinetuneConfig:
@@ -78,6 +86,7 @@ def run_config(args: argparse.Namespace, method: str, seed: int, run_dir: Path) 
         f"evaluation.seed={args.eval_seed}",
         f"evaluation.final_seed={args.eval_seed}",  # the same starts: evaluations reused
         "logger=csv",
+        f"checkpoint_every_frames={args.checkpoint_every_frames}",
         f"output_dir={run_dir}",
         *[o.split(":", 1)[1] for o in args.override if o.split(":", 1)[0] in (method, "all")],
     ]
@@ -86,51 +95,94 @@ def run_config(args: argparse.Namespace, method: str, seed: int, run_dir: Path) 
     return OmegaConf.to_object(cfg)
 
 
+def process_age_s() -> float:
+    """Seconds since this process started (Linux: /proc/self/stat's start time)."""
+    start_ticks = int(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+    uptime_s = float(Path("/proc/uptime").read_text().split()[0])
+    return uptime_s - start_ticks / os.sysconf("SC_CLK_TCK")
+
+
+PHASES = ("collection_s", "update_s", "evaluation_s")  # a run's totals (last.ckpt, results)
+
+
+def phase_totals(run_dir: Path) -> dict[str, float]:
+    """The run's phase totals where this invocation starts: those of its ``last.ckpt``
+    (what a resumed run continues from; work after it was lost), else none."""
+    checkpoint = run_dir / RUN_CHECKPOINT
+    if not checkpoint.exists():
+        return {}
+    progress, _, _ = load_run(checkpoint)
+    return {p: float(progress[p]) for p in PHASES}
+
+
 def run_one(args: argparse.Namespace, method: str, seed: int) -> None:
+    """Fine-tune one (method, seed) up to ``--scoops`` (or skip it), then print where this
+    invocation's time went: composing the config, collection, updates, evaluations, and
+    the rest (building the learner and envs, checkpoints, curve plots)."""
     run_dir = args.out / method / f"seed{seed}"
     results = run_dir / "results.json"
     if results.exists() and json.loads(results.read_text())["scoops"] >= args.scoops:
         print(f"{method} seed {seed}: done, skipped")
         return
-    config = run_config(args, method, seed, run_dir)
+    before = phase_totals(run_dir)
     started = time.perf_counter()
+    config = run_config(args, method, seed, run_dir)
+    compose_s = time.perf_counter() - started
     finetune(config, run_dir, progress=False)
     wall_s = time.perf_counter() - started
     bench = run_dir / BENCH_FILE
     invocations = json.loads(bench.read_text())["invocations_s"] if bench.exists() else []
-    write_text_atomic(bench, json.dumps({"invocations_s": [*invocations, wall_s]}))
-    print(f"{method} seed {seed}: {wall_s:.0f} s")
+    record = {"invocations_s": [*invocations, wall_s], "scoops_budget": args.scoops}
+    write_text_atomic(bench, json.dumps(record))
+    after = json.loads(results.read_text())
+    phases = {"compose_s": compose_s}
+    phases.update({p: after[p] - before.get(p, 0.0) for p in PHASES})
+    phases["other_s"] = wall_s - sum(phases.values())
+    print(
+        f"{method} seed {seed}: {wall_s:.0f} s, {after['scoops']} scoops, {after['frames']} "
+        "frames; " + ", ".join(f"{k.removesuffix('_s')} {v:.1f} s" for k, v in phases.items())
+    )
 
 
 # ---------------------------------------------------------------------- the report
-def load_runs(out: Path, methods: list[str]) -> dict[str, list[dict]]:
-    """Per method, every finished run: its evaluations, results and wall time."""
+def load_runs(out: Path, methods: list[str]) -> tuple[dict[str, list[dict]], dict[str, list[int]]]:
+    """Per method, every finished run (its evaluations, results, wall time and configured
+    scoop budget), and the seeds of the runs begun but not finished."""
     runs: dict[str, list[dict]] = {}
+    unfinished: dict[str, list[int]] = {}
     for method in methods:
         for run_dir in sorted((out / method).glob("seed*")):
+            seed = int(run_dir.name.removeprefix("seed"))
             if not (run_dir / "results.json").exists():
+                unfinished.setdefault(method, []).append(seed)
                 continue
             bench = run_dir / BENCH_FILE
+            record = json.loads(bench.read_text()) if bench.exists() else {}
             runs.setdefault(method, []).append(
                 {
-                    "seed": int(run_dir.name.removeprefix("seed")),
+                    "seed": seed,
                     "evaluations": json.loads((run_dir / "evaluations.json").read_text()),
                     "results": json.loads((run_dir / "results.json").read_text()),
-                    "wall_s": sum(json.loads(bench.read_text())["invocations_s"])
-                    if bench.exists()
-                    else None,
+                    "wall_s": sum(record["invocations_s"]) if record else None,
+                    # runs from before it was recorded: None
+                    "scoops_budget": record.get("scoops_budget"),
                 }
             )
-    return runs
+    return runs, unfinished
 
 
 def summarise_run(run: dict) -> dict:
+    """One run's numbers. ``scoops`` is the count reached (the run stops at the first
+    batch that reaches its budget, so a few more); the winter AUC is over the configured
+    budget where recorded (the same span for every seed), else over the count reached."""
     results = run["results"]
-    budget = int(results["scoops"])
+    reached = int(results["scoops"])
+    budget = run["scoops_budget"] or reached
     winter, summer = curve(run["evaluations"], "winter"), curve(run["evaluations"], "summer")
     summary = {
         "seed": run["seed"],
-        "scoops": budget,
+        "scoops_budget": run["scoops_budget"],
+        "scoops": reached,
         "frames": results["frames"],
         "scoops_to_90": scoops_to(*winter, THRESHOLD),
         "winter_auc": area_under_curve(*winter, budget),
@@ -146,9 +198,8 @@ def summarise_run(run: dict) -> dict:
         },
     }
     for at in REPORT_SCOOPS:
-        reached = budget >= at
-        summary[f"winter_at_{at}"] = success_at(*winter, at) if reached else None
-        summary[f"summer_at_{at}"] = success_at(*summer, at) if reached else None
+        summary[f"winter_at_{at}"] = success_at(*winter, at) if reached >= at else None
+        summary[f"summer_at_{at}"] = success_at(*summer, at) if reached >= at else None
     return summary
 
 
@@ -161,7 +212,7 @@ def _iqm_ci(values: list[float]) -> str:
 
 def method_row(method: str, summaries: list[dict]) -> dict:
     """The table row: censored scoops-to-90 count as the run's budget (shown as '>')."""
-    budget = min(s["scoops"] for s in summaries)
+    budgets = sorted({s["scoops_budget"] for s in summaries if s["scoops_budget"] is not None})
     to90 = [s["scoops_to_90"] if s["scoops_to_90"] is not None else s["scoops"] for s in summaries]
     per_seed = ", ".join(
         str(s["scoops_to_90"]) if s["scoops_to_90"] is not None else f">{s['scoops']}"
@@ -175,7 +226,8 @@ def method_row(method: str, summaries: list[dict]) -> dict:
     row = {
         "method": method,
         "seeds": len(summaries),
-        "scoops_budget": budget,
+        "scoops_budget": budgets[0] if len(budgets) == 1 else budgets or None,  # configured
+        "min_scoops_reached": min(s["scoops"] for s in summaries),
         "scoops_to_90_per_seed": per_seed,
         "scoops_to_90_iqm_ci": _iqm_ci(to90)
         if most_reached
@@ -230,8 +282,8 @@ def plot(summaries: dict[str, list[dict]], path: Path) -> Path:
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
     for index, (method, runs) in enumerate(summaries.items()):
         color = f"C{index}"
-        budget = min(r["scoops"] for r in runs)
-        grid = np.unique(np.concatenate([[0], np.linspace(0, budget, 41).astype(int)]))
+        reached = min(r["scoops"] for r in runs)  # every seed's curve is known up to here
+        grid = np.unique(np.concatenate([[0], np.linspace(0, reached, 41).astype(int)]))
         for ax, group in zip(axes, ("winter", "summer"), strict=True):
             curves = []
             for r in runs:
@@ -266,7 +318,7 @@ def plot(summaries: dict[str, list[dict]], path: Path) -> Path:
 
 
 def report(args: argparse.Namespace) -> None:
-    runs = load_runs(args.out, args.methods)
+    runs, unfinished = load_runs(args.out, args.methods)
     if not runs:
         raise SystemExit(f"no finished runs under {args.out}")
     summaries = {m: [summarise_run(r) for r in rs] for m, rs in runs.items()}
@@ -280,10 +332,18 @@ def report(args: argparse.Namespace) -> None:
         table(rows)
         + f"\n\nThe clone before fine-tuning (0 scoops, the same held-out starts): {clone}.\n"
     )
+    partial = [
+        f"{m}: seeds {unfinished[m]} unfinished, not in the table"
+        for m in args.methods
+        if unfinished.get(m)
+    ] + [f"{m}: no finished run" for m in args.methods if m not in runs]
+    if partial:
+        text += "\n**Partial results** (the benchmark is still running): " + "; ".join(partial)
+        text += ".\n"
     write_text_atomic(args.report / "sample_efficiency.md", text)
     write_text_atomic(
         args.report / "sample_efficiency.json",
-        json.dumps({"rows": rows, "runs": summaries}, indent=1),
+        json.dumps({"rows": rows, "runs": summaries, "unfinished": unfinished}, indent=1),
     )
     plot(summaries, args.report / "sample_efficiency.png")
     print(text)
@@ -299,6 +359,12 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=2, help="per condition")
     parser.add_argument("--eval-seed", type=int, default=1000, help="held-out starts")
     parser.add_argument("--curriculum", default="winter_mix")
+    parser.add_argument(
+        "--checkpoint-every-frames",
+        type=int,
+        default=CHECKPOINT_EVERY_FRAMES,
+        help="last.ckpt interval; each one restarts the simulators, ending their scoops unfinished",
+    )
     parser.add_argument("--out", type=Path, default=Path("outputs/sample_efficiency"))
     parser.add_argument("--report", type=Path, default=ROOT / "docs/results/finetune")
     parser.add_argument("--shard", default="0/1", help="i/n: run every n-th (method, seed)")
@@ -325,6 +391,7 @@ def main() -> None:
         logging.basicConfig(level=logging.WARNING)
         limit_threads(1)
         register_configs()
+        print(f"startup (process start, imports, configs): {process_age_s():.1f} s")
         shard, shards = (int(x) for x in args.shard.split("/"))
         pairs = [(m, s) for s in range(args.seeds) for m in args.methods]  # seed-major
         for method, seed in pairs[shard::shards]:

@@ -51,6 +51,10 @@ class CheckpointError(ValueError):
     """A file is not a readable pilerl checkpoint; the message names the file and why."""
 
 
+class CheckpointFormatError(CheckpointError):
+    """A sound checkpoint file (zip and content types checked) of another ``format``."""
+
+
 # ---------------------------------------------------------------- writing
 
 
@@ -103,7 +107,7 @@ def read_checkpoint(
     payload = _unpickle_plain(path, what)
     if not isinstance(payload, dict) or payload.get("format") != expected_format:
         found = payload.get("format") if isinstance(payload, dict) else type(payload).__name__
-        raise CheckpointError(
+        raise CheckpointFormatError(
             f"{path}: not a {what} (format {found!r}, expected {expected_format!r})"
         )
     found_version = payload.get("version")

@@ -30,6 +30,7 @@ from pilerl.evaluation.evaluator import ActorController, ActorWeights
 from pilerl.policies import ACTION_KEY, InputNormalizer, SensorPolicy, actor_policy
 from pilerl.policies.checkpoint_file import (
     CheckpointError,
+    CheckpointFormatError,
     load_module_state,
     parse_json,
     read_checkpoint,
@@ -188,21 +189,18 @@ def load_residual_actor(path: str | Path) -> TensorDictModule:
     return actor.eval()
 
 
-def is_residual_checkpoint(path: str | Path) -> bool:
-    """Whether ``path`` holds a residual actor (``save_residual_actor``)."""
-    try:
-        payload = torch.load(Path(path), weights_only=True, map_location="cpu")
-    except Exception:  # noqa: BLE001 - anything unreadable is no residual actor
-        return False
-    return isinstance(payload, dict) and payload.get("format") == RESIDUAL_FORMAT
-
-
 def controller_for(actor: nn.Module | str | Path):
-    """The evaluation controller of an actor in memory or saved (residual or cloned)."""
+    """The evaluation controller of an actor in memory or saved (residual or cloned).
+
+    A saved file is read by the checked reader (``read_checkpoint``) as a residual actor;
+    only a sound file of another format (a cloned actor's checkpoint, checked again by its
+    own reader) is handed on as a cloned actor. A damaged file fails here.
+    """
     if isinstance(actor, str | Path):
-        if is_residual_checkpoint(actor):
+        try:
             return ResidualWeights.of(load_residual_actor(actor))
-        return ActorController(str(actor))
+        except CheckpointFormatError:
+            return ActorController(str(actor))
     if residual_policy(actor) is not None:
         return ResidualWeights.of(actor)
     return ActorWeights.of(actor)

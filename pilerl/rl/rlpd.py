@@ -18,8 +18,9 @@ The parts, after Ball et al., "Efficient Online RL with Offline Data" (RLPD, ICM
   frozen and a small residual actor, zero at the start, learns a bounded correction.
 
 The actor is deterministic (TD3's), so collection adds Gaussian noise
-(``AdditiveGaussianModule``). ``state_dict()`` holds the online replay's transitions, so a
-resumed run samples what an uninterrupted one would.
+(``AdditiveGaussianModule``; optimisers, target updates and noise are
+``pilerl.rl.off_policy.TD3Parts``, shared with TD3+BC). ``state_dict()`` holds the online
+replay's transitions, so a resumed run samples what an uninterrupted one would.
 """
 
 from __future__ import annotations
@@ -28,20 +29,16 @@ from pathlib import Path
 
 import torch
 from tensordict import TensorDict, TensorDictBase
-from tensordict.nn import TensorDictModule, TensorDictSequential
+from tensordict.nn import TensorDictModule
 from torchrl.data import Bounded, LazyTensorStorage, OfflineToOnlineReplayBuffer, ReplayBuffer
-from torchrl.modules import AdditiveGaussianModule
-from torchrl.objectives import SoftUpdate, TD3Loss
+from torchrl.objectives import TD3Loss
 
 from pilerl.policies import actor_policy
-from pilerl.policies.checkpoint_file import (
-    CheckpointError,
-    load_module_state,
-    load_optimizer_state,
-)
+from pilerl.policies.checkpoint_file import CheckpointError
 
 from .config import RLPDConfig
 from .critics import make_q_network
+from .off_policy import TD3Parts
 from .residual import make_residual_actor
 
 END_FLAGS = ("done", "terminated", "truncated")
@@ -86,21 +83,15 @@ class RLPDLearner:
             loss_function="l2",
         )
         self.loss.make_value_estimator(gamma=settings.gamma)
-        self.target_updater = SoftUpdate(self.loss, tau=settings.tau)
-        # the residual actor's clone gets no gradient: Adam skips it
-        self.actor_optimizer = torch.optim.Adam(
-            list(self.loss.actor_network_params.values(True, True)), lr=settings.actor_lr
-        )
-        self.critic_optimizer = torch.optim.Adam(
-            list(self.loss.qvalue_network_params.values(True, True)), lr=settings.critic_lr
-        )
-        self.exploration = AdditiveGaussianModule(
+        self.parts = TD3Parts.around(
+            self.loss,
+            self.actor,
             self.action_spec,
-            sigma_init=float(settings.exploration_sigma),
-            sigma_end=float(settings.exploration_sigma),
-            annealing_num_steps=1,
+            tau=settings.tau,
+            actor_lr=settings.actor_lr,
+            critic_lr=settings.critic_lr,
+            exploration_sigma=settings.exploration_sigma,
         )
-        self._collection_policy = TensorDictSequential(self.actor, self.exploration)
         self.keys = sorted(self.loss.in_keys, key=str)
         if demos is None:
             raise ValueError("RLPD: needs demonstrations (demos: a dataset directory)")
@@ -123,7 +114,7 @@ class RLPDLearner:
     @property
     def collection_policy(self) -> TensorDictModule:
         """What the collector runs (the actor plus Gaussian exploration noise)."""
-        return self._collection_policy
+        return self.parts.collection_policy
 
     @property
     def deterministic_actor(self) -> TensorDictModule:
@@ -148,19 +139,19 @@ class RLPDLearner:
         for _ in range(steps):
             data = self.replay.sample()
             q_loss, _ = self.loss.value_loss(data)
-            self.critic_optimizer.zero_grad()
+            self.parts.critic_optimizer.zero_grad()
             q_loss.backward()
-            self.critic_optimizer.step()
+            self.parts.critic_optimizer.step()
             q_sum += float(q_loss.detach())
             self.updates += 1
             if not warmup and self.updates % self.settings.policy_delay == 0:
                 actor_loss, _ = self.loss.actor_loss(data)
-                self.actor_optimizer.zero_grad()
+                self.parts.actor_optimizer.zero_grad()
                 actor_loss.backward()
-                self.actor_optimizer.step()
+                self.parts.actor_optimizer.step()
                 actor_sum += float(actor_loss.detach())
                 actor_steps += 1
-            self.target_updater.step()
+            self.parts.target_updater.step()
         metrics = {
             "loss_qvalue": q_sum / steps,
             "warmup": float(warmup),
@@ -184,25 +175,13 @@ class RLPDLearner:
                 for key, value in online.storage[:size].items(True, True)
             }
         return {
-            "loss": self.loss.state_dict(),
-            "actor_optimizer": self.actor_optimizer.state_dict(),
-            "critic_optimizer": self.critic_optimizer.state_dict(),
-            "exploration": self.exploration.state_dict(),
-            "updates": self.updates,
+            **self.parts.state_dict(updates=self.updates),
             "replay": {"size": size, "data": data, "writer": dict(online._writer.state_dict())},
         }
 
     def load_state_dict(self, state: dict, *, path: Path) -> None:
         """Restore ``state_dict()`` read from ``path``; what does not fit is refused."""
-        load_module_state(path, self.loss, state.get("loss"), "learner.loss does not fit")
-        load_module_state(
-            path, self.exploration, state.get("exploration"), "learner.exploration does not fit"
-        )
-        for name in ("actor_optimizer", "critic_optimizer"):
-            load_optimizer_state(path, getattr(self, name), state.get(name), f"learner.{name}")
-        updates = state.get("updates")
-        if not isinstance(updates, int) or isinstance(updates, bool) or updates < 0:
-            raise CheckpointError(f"{path}: learner.updates is {updates!r}, not a count")
+        updates = self.parts.load_state_dict(state, path=path)
         self._load_replay(path, state.get("replay"))
         self.updates = updates
 

@@ -1,7 +1,8 @@
 """TD3+BC around a cloned actor: TorchRL ``TD3BCLoss``, twin Q, demos mixed into replay.
 
 The actor is the cloned deterministic actor itself (eval mode, no dropout); collection
-adds Gaussian noise to its action (``AdditiveGaussianModule``). Every gradient step draws
+adds Gaussian noise to its action (``AdditiveGaussianModule``; optimisers, target updates
+and noise are ``pilerl.rl.off_policy.TD3Parts``, shared with RLPD). Every gradient step draws
 ``demo_fraction`` of its batch from the demonstrations (which carry ``next`` readings,
 reward and end flags, like a TorchRL rollout) and the rest from the online replay buffer.
 TD3+BC's actor loss is ``-lambda * Q(s, pi(s)) + MSE(pi(s), a)`` on that batch, with
@@ -18,21 +19,17 @@ from pathlib import Path
 
 import torch
 from tensordict import TensorDict, TensorDictBase, cat
-from tensordict.nn import TensorDictModule, TensorDictSequential
+from tensordict.nn import TensorDictModule
 from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer
-from torchrl.modules import AdditiveGaussianModule
-from torchrl.objectives import SoftUpdate, TD3BCLoss
+from torchrl.objectives import TD3BCLoss
 
 from pilerl.data import make_replay_buffer
 from pilerl.policies import actor_policy
-from pilerl.policies.checkpoint_file import (
-    CheckpointError,
-    load_module_state,
-    load_optimizer_state,
-)
+from pilerl.policies.checkpoint_file import CheckpointError
 
 from .config import TD3BCConfig
 from .critics import make_q_network
+from .off_policy import TD3Parts
 
 END_FLAGS = ("done", "terminated", "truncated")
 REPLAY_INDEX_KEY = "index"  # TensorDictReplayBuffer stores each transition's index
@@ -70,20 +67,15 @@ class TD3BCLearner:
             loss_function="l2",
         )
         self.loss.make_value_estimator(gamma=settings.gamma)
-        self.target_updater = SoftUpdate(self.loss, tau=settings.tau)
-        self.actor_optimizer = torch.optim.Adam(
-            list(self.loss.actor_network_params.values(True, True)), lr=settings.actor_lr
-        )
-        self.critic_optimizer = torch.optim.Adam(
-            list(self.loss.qvalue_network_params.values(True, True)), lr=settings.critic_lr
-        )
-        self.exploration = AdditiveGaussianModule(
+        self.parts = TD3Parts.around(
+            self.loss,
+            actor,
             self.action_spec,
-            sigma_init=float(settings.exploration_sigma),
-            sigma_end=float(settings.exploration_sigma),
-            annealing_num_steps=1,
+            tau=settings.tau,
+            actor_lr=settings.actor_lr,
+            critic_lr=settings.critic_lr,
+            exploration_sigma=settings.exploration_sigma,
         )
-        self._collection_policy = TensorDictSequential(actor, self.exploration)
         self.keys = sorted(self.loss.in_keys, key=str)
         self.demo_batch = round(settings.batch_size * settings.demo_fraction)
         self.online_batch = settings.batch_size - self.demo_batch
@@ -106,31 +98,16 @@ class TD3BCLearner:
     @property
     def collection_policy(self) -> TensorDictModule:
         """What the collector runs (the actor plus Gaussian exploration noise)."""
-        return self._collection_policy
+        return self.parts.collection_policy
 
     def state_dict(self) -> dict[str, object]:
         """What ``last.ckpt`` stores: networks and targets, optimisers, the update count
         (the actor's delay phase) and the online replay buffer's transitions."""
-        return {
-            "loss": self.loss.state_dict(),
-            "actor_optimizer": self.actor_optimizer.state_dict(),
-            "critic_optimizer": self.critic_optimizer.state_dict(),
-            "exploration": self.exploration.state_dict(),
-            "updates": self.updates,
-            "replay": self._replay_state(),
-        }
+        return {**self.parts.state_dict(updates=self.updates), "replay": self._replay_state()}
 
     def load_state_dict(self, state: dict, *, path: Path) -> None:
         """Restore ``state_dict()`` read from ``path``; what does not fit is refused."""
-        load_module_state(path, self.loss, state.get("loss"), "learner.loss does not fit")
-        load_module_state(
-            path, self.exploration, state.get("exploration"), "learner.exploration does not fit"
-        )
-        for name in ("actor_optimizer", "critic_optimizer"):
-            load_optimizer_state(path, getattr(self, name), state.get(name), f"learner.{name}")
-        updates = state.get("updates")
-        if not isinstance(updates, int) or updates < 0:
-            raise CheckpointError(f"{path}: learner.updates is {updates!r}, not a count")
+        updates = self.parts.load_state_dict(state, path=path)
         self._load_replay(path, state.get("replay"))
         self.updates = updates
 
@@ -221,22 +198,22 @@ class TD3BCLearner:
         for _ in range(self.settings.updates_per_batch):
             data = self.sample()
             q_loss, _ = self.loss.qvalue_loss(data)
-            self.critic_optimizer.zero_grad()
+            self.parts.critic_optimizer.zero_grad()
             q_loss.backward()
-            self.critic_optimizer.step()
+            self.parts.critic_optimizer.step()
             sums["loss_qvalue"] = sums.get("loss_qvalue", 0.0) + float(q_loss.detach())
             self.updates += 1
             if not warmup and self.updates % self.settings.policy_delay == 0:
                 actor_loss, info = self.loss.actor_loss(data)
-                self.actor_optimizer.zero_grad()
+                self.parts.actor_optimizer.zero_grad()
                 actor_loss.backward()
-                self.actor_optimizer.step()
-                self.target_updater.step()
+                self.parts.actor_optimizer.step()
+                self.parts.target_updater.step()
                 sums["loss_actor"] = sums.get("loss_actor", 0.0) + float(actor_loss.detach())
                 sums["bc_loss"] = sums.get("bc_loss", 0.0) + float(info["bc_loss"])
                 actor_steps += 1
             elif warmup:
-                self.target_updater.step()
+                self.parts.target_updater.step()
         metrics = {"loss_qvalue": sums["loss_qvalue"] / self.settings.updates_per_batch}
         if actor_steps:
             metrics["loss_actor"] = sums["loss_actor"] / actor_steps

@@ -1,5 +1,6 @@
 """Fine-tuning is reproducible: same seed -> same weights; killed and resumed -> the same
-weights as an uninterrupted run (PPO and TD3+BC, whose replay buffer is checkpointed)."""
+weights as an uninterrupted run (PPO; TD3+BC, RLPD and residual RLPD, whose replay buffers
+are checkpointed)."""
 
 from __future__ import annotations
 
@@ -16,11 +17,14 @@ from pilerl.rl import (
     EvaluationConfig,
     FinetuneConfig,
     PPOConfig,
+    RLPDConfig,
     TD3BCConfig,
     finetune,
 )
 from pilerl.rl.finetuning import RUN_CHECKPOINT
 from pilerl.rl.ppo import PPOLearner
+from pilerl.rl.residual import load_residual_actor, residual_policy
+from pilerl.rl.rlpd import RLPDLearner
 from pilerl.rl.run_checkpoint import load_run
 from pilerl.rl.td3bc import TD3BCLearner
 
@@ -66,8 +70,25 @@ def tiny_td3bc() -> TD3BCConfig:
     )
 
 
+def tiny_rlpd(*, residual: bool) -> RLPDConfig:
+    return RLPDConfig(
+        frames_per_batch=64,
+        batch_size=32,
+        utd_ratio=0.1,
+        warmup_utd_ratio=0.1,
+        critic_warmup_batches=1,
+        critic_hidden=[16, 16],
+        residual=residual,
+        residual_hidden=[8],
+    )
+
+
 def final_weights(run_dir: Path) -> dict[str, torch.Tensor]:
     return actor_policy(load_actor(run_dir / "final.pt")).state_dict()
+
+
+def final_residual_weights(run_dir: Path) -> dict[str, torch.Tensor]:
+    return residual_policy(load_residual_actor(run_dir / "final.pt")).state_dict()
 
 
 def assert_same_weights(a: dict[str, torch.Tensor], b: dict[str, torch.Tensor]) -> None:
@@ -154,6 +175,33 @@ def test_killed_td3bc_run_resumes_exactly_with_its_replay_buffer(cloned, tmp_pat
     assert learner_state["updates"] == 8
     finetune(config, tmp_path / "killed", progress=False)
     assert_same_weights(final_weights(tmp_path / "killed"), final_weights(tmp_path / "reference"))
+
+
+@pytest.mark.parametrize("residual", [False, True], ids=["rlpd", "rlpd_residual"])
+def test_killed_rlpd_run_resumes_exactly_with_its_replay_buffer(
+    cloned, datasets, tmp_path, monkeypatch, residual
+):
+    """Killed after its first checkpoint (2 of 4 batches), an RLPD run resumes to the
+    uninterrupted run's weights, online replay and update count, bit for bit."""
+    config = tiny_run_config(cloned, tiny_rlpd(residual=residual))
+    config.demos = str(datasets[0] / "d_i")  # RLPD samples half of each batch from these
+    finetune(config, tmp_path / "reference", progress=False)
+
+    run_killed_at_update(monkeypatch, RLPDLearner, 4, config, tmp_path / "killed")
+    _, learner_state, _ = load_run(tmp_path / "killed" / RUN_CHECKPOINT)
+    assert learner_state["replay"]["size"] == 128  # two batches were in the buffer
+    assert learner_state["updates"] == 12  # 6 critic steps per 64-frame batch at UTD 0.1
+    finetune(config, tmp_path / "killed", progress=False)
+
+    weights = final_residual_weights if residual else final_weights
+    assert_same_weights(weights(tmp_path / "killed"), weights(tmp_path / "reference"))
+    _, resumed, _ = load_run(tmp_path / "killed" / RUN_CHECKPOINT)
+    _, reference, _ = load_run(tmp_path / "reference" / RUN_CHECKPOINT)
+    assert resumed["updates"] == reference["updates"] == 24
+    assert resumed["replay"]["size"] == reference["replay"]["size"] == FRAMES
+    assert resumed["replay"]["writer"] == reference["replay"]["writer"]
+    assert_same_weights(resumed["replay"]["data"], reference["replay"]["data"])
+    assert_same_weights(resumed["loss"], reference["loss"])  # critics and targets too
 
 
 def test_multiprocess_collection_restarts_its_workers_at_each_segment(cloned, tmp_path):

@@ -15,7 +15,9 @@ from omegaconf import OmegaConf
 from tensordict import TensorDict
 from test_rl import CONF, S_PRIME, S, tiny_config
 
+from pilerl.evaluation.evaluator import ActorController
 from pilerl.policies import actor_policy, load_actor, make_actor, save_actor
+from pilerl.policies.checkpoint_file import CheckpointError
 from pilerl.rl import EvaluationConfig, FinetuneConfig, RLPDConfig, finetune
 from pilerl.rl.envs import BATCH_INFO_KEYS, make_training_env
 from pilerl.rl.residual import (
@@ -23,6 +25,7 @@ from pilerl.rl.residual import (
     controller_for,
     load_residual_actor,
     residual_policy,
+    save_residual_actor,
 )
 from pilerl.rl.rlpd import RLPDLearner
 from pilerl.rl.sample_efficiency import (
@@ -180,8 +183,6 @@ def test_residual_actor_acts_as_the_clone_at_init_and_keeps_the_clone_frozen(clo
     assert (moved - expected).abs().max() <= policy.scale + 1e-6
 
     # saved and rebuilt (file and evaluation controller): the same actions
-    from pilerl.rl.residual import save_residual_actor
-
     path = save_residual_actor(tmp_path / "residual.pt", learner.actor)
     with torch.no_grad():
         reloaded = load_residual_actor(path)(obs.clone())["action"]
@@ -189,6 +190,24 @@ def test_residual_actor_acts_as_the_clone_at_init_and_keeps_the_clone_frozen(clo
     torch.testing.assert_close(reloaded, moved, atol=0, rtol=0)
     torch.testing.assert_close(shipped, moved, atol=0, rtol=0)
     assert isinstance(controller_for(path), ResidualWeights)
+
+
+def test_a_saved_actor_is_told_apart_by_the_checked_reader(cloned, tmp_path):
+    """``controller_for(path)`` reads a residual checkpoint through ``read_checkpoint``: a
+    cloned actor's file is handed on as one, a damaged residual file fails there."""
+    checkpoint, _, demos = cloned
+    assert isinstance(controller_for(checkpoint), ActorController)
+    learner = RLPDLearner(load_actor(checkpoint), tiny_rlpd(residual=True), demos=demos)
+    path = save_residual_actor(tmp_path / "residual.pt", learner.actor)
+    damaged = bytearray(path.read_bytes())
+    middle = len(damaged) // 2
+    damaged[middle] ^= 0xFF
+    (tmp_path / "damaged.pt").write_bytes(bytes(damaged))
+    with pytest.raises(CheckpointError, match="damaged.pt"):
+        controller_for(tmp_path / "damaged.pt")
+    torch.save({"format": "pilerl.residual_actor", "version": 1}, tmp_path / "no_digest.pt")
+    with pytest.raises(CheckpointError, match="corrupted"):
+        controller_for(tmp_path / "no_digest.pt")
 
 
 def test_rlpd_learner_needs_demonstrations(cloned):
@@ -310,8 +329,16 @@ def test_evaluations_at_one_scoop_count_keep_their_order():
     assert success_at(scoops, rate, 10) == 0.2
 
 
-def fake_run(run_dir, curve_points: list[tuple[int, float, float]], *, failed: int, wall_s: float):
-    """A finished benchmark run on disk: its evaluations, results and wall time."""
+def fake_run(
+    run_dir,
+    curve_points: list[tuple[int, float, float]],
+    *,
+    failed: int,
+    wall_s: float,
+    budget: int | None = None,
+):
+    """A finished benchmark run on disk: its evaluations, results, wall time and (where
+    given) configured scoop budget."""
     run_dir.mkdir(parents=True)
     evaluations = [
         {
@@ -332,7 +359,10 @@ def fake_run(run_dir, curve_points: list[tuple[int, float, float]], *, failed: i
     }
     (run_dir / "evaluations.json").write_text(json.dumps(evaluations))
     (run_dir / "results.json").write_text(json.dumps(results))
-    (run_dir / "benchmark.json").write_text(json.dumps({"invocations_s": [wall_s / 2, wall_s / 2]}))
+    bench = {"invocations_s": [wall_s / 2, wall_s / 2]}
+    if budget is not None:
+        bench["scoops_budget"] = budget
+    (run_dir / "benchmark.json").write_text(json.dumps(bench))
 
 
 def test_benchmark_report_tabulates_finished_runs(tmp_path, monkeypatch, capsys):
@@ -361,3 +391,31 @@ def test_benchmark_report_tabulates_finished_runs(tmp_path, monkeypatch, capsys)
     assert data["runs"]["ppo"][0]["winter_at_40"] == 0.75  # the evaluation at 24 scoops
     assert data["runs"]["ppo"][1]["winter_at_200"] is None  # never got there
     assert (report / "sample_efficiency.png").stat().st_size > 0
+
+
+def test_benchmark_report_keeps_the_configured_budget_apart_from_the_scoops_reached(
+    tmp_path, monkeypatch
+):
+    """Runs stop at the first batch past their budget: the budget is what was asked, the
+    count reached is named as such, and a begun but unfinished run is reported as such."""
+    out, report = tmp_path / "runs", tmp_path / "report"
+    fake_run(
+        out / "td3bc" / "seed0", [(0, 0.0, 0.0), (43, 0.5, 1.0)], failed=9, wall_s=6, budget=40
+    )
+    fake_run(
+        out / "td3bc" / "seed1", [(0, 0.0, 0.0), (47, 1.0, 1.0)], failed=9, wall_s=6, budget=40
+    )
+    (out / "td3bc" / "seed2").mkdir()  # begun (a last.ckpt would be here), not finished
+    script = Path(__file__).resolve().parents[2] / "benchmarks" / "sample_efficiency.py"
+    argv = [str(script), "--report-only", "--out", str(out), "--report", str(report)]
+    monkeypatch.setattr("sys.argv", argv + ["--methods", "td3bc", "ppo"])
+    runpy.run_path(str(script), run_name="__main__")
+    data = json.loads((report / "sample_efficiency.json").read_text())
+    (row,) = data["rows"]
+    assert row["scoops_budget"] == 40 and row["min_scoops_reached"] == 43
+    assert [r["scoops"] for r in data["runs"]["td3bc"]] == [43, 47]
+    # the AUC spans the configured 40 scoops for both seeds: 0.0 over 0-40
+    assert [r["winter_auc"] for r in data["runs"]["td3bc"]] == [0.0, 0.0]
+    assert data["unfinished"] == {"td3bc": [2]}
+    text = (report / "sample_efficiency.md").read_text()
+    assert "td3bc: seeds [2] unfinished" in text and "ppo: no finished run" in text
