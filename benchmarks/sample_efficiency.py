@@ -5,7 +5,8 @@
         --override rlpd:algorithm.utd_ratio=0.2 --out outputs/sample_efficiency
 
 For each method (a ``conf/algorithm/<name>.yaml``, composed like ``recipes/finetune.py``)
-and seed, fine-tunes the main job's cloned actor (``<run>/bc/best.pt``, demonstrations
+and seed, fine-tunes the main job's cloned actor (``<run>/bc/final.pt``, or ``--clone-weights best``
+for ``bc/best.pt``; demonstrations
 ``<run>/datasets/d_ii``) in the ``winter_mix`` curriculum until ``--scoops`` training
 scoops (episodes) have ended, evaluating on held-out seeded starts
 (``evaluation.seed=--eval-seed``, other starts than training's) at 0 scoops and at each
@@ -67,6 +68,12 @@ BENCH_FILE = "benchmark.json"  # per run: wall time of every invocation
 CHECKPOINT_EVERY_FRAMES = 20_000
 
 
+def clone_checkpoint(args: argparse.Namespace) -> Path:
+    """The main job's cloned actor: ``bc/final.pt`` (what the main job fine-tunes since its
+    ``bc.selection=final``) or ``bc/best.pt``."""
+    return args.run / "bc" / f"{args.clone_weights}.pt"
+
+
 def run_config(args: argparse.Namespace, method: str, seed: int, run_dir: Path) -> FinetuneConfig:
     """The finetune recipe's config for one (method, seed), from the conf/ groups."""
     at_scoops = [s for s in args.at_scoops if s <= args.scoops]
@@ -75,7 +82,7 @@ def run_config(args: argparse.Namespace, method: str, seed: int, run_dir: Path) 
     overrides = [
         f"algorithm={method}",
         f"curriculum={args.curriculum}",
-        f"checkpoint={args.run / 'bc' / 'best.pt'}",
+        f"checkpoint={clone_checkpoint(args)}",
         f"demos={args.run / 'datasets' / 'd_ii'}",
         f"seed={seed}",
         f"max_scoops={args.scoops}",
@@ -352,6 +359,12 @@ def report(args: argparse.Namespace) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--run", type=Path, help="a main-job run directory (bc/, datasets/)")
+    parser.add_argument(
+        "--clone-weights",
+        choices=("final", "best"),
+        default="final",
+        help="which of the main job's BC weights to fine-tune (its bc.selection)",
+    )
     parser.add_argument("--methods", nargs="+", default=list(METHODS))
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--scoops", type=int, default=200, help="training scoops per run")
@@ -386,8 +399,9 @@ def main() -> None:
     if args.seeds < 1 or args.scoops < 1:
         parser.error("--seeds and --scoops must be >= 1")
     if not args.report_only:
-        if args.run is None or not (args.run / "bc" / "best.pt").is_file():
-            parser.error(f"--run: no bc/best.pt under {args.run}")
+        if args.run is None or not clone_checkpoint(args).is_file():
+            where = f"bc/{args.clone_weights}.pt"
+            parser.error(f"--run: no {where} under {args.run} (see --clone-weights)")
         logging.basicConfig(level=logging.WARNING)
         limit_threads(1)
         register_configs()
