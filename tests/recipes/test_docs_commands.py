@@ -188,7 +188,7 @@ def run_command(command: Command) -> None:
                 tiny = [o for o in tiny if "minibatch" not in o]
                 tiny += ["algorithm.updates_per_batch=2", "algorithm.batch_size=32"]
             if "hydra/sweeper=bc_optuna" in command.text:  # Optuna's budget: its trials
-                tiny += [f"hydra.sweeper.n_trials={TINY_OPTUNA_TRIALS}"]
+                tiny = [*tiny, f"hydra.sweeper.n_trials={TINY_OPTUNA_TRIALS}"]
             sys.argv = [str(recipe), *argv[1:], *tiny]
             runpy.run_path(str(recipe), run_name="__main__")
         else:
