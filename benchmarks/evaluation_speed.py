@@ -18,6 +18,8 @@ another checkout).
 
     python benchmarks/evaluation_speed.py
     python benchmarks/evaluation_speed.py --episodes 8 --repeats 3
+    python benchmarks/evaluation_speed.py --episodes 1 \
+        --conditions summer,winter_a,winter_b,winter_c,winter_d   # a train_bc job's test
 """
 
 from __future__ import annotations
@@ -110,10 +112,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--episodes", type=int, default=4, help="episodes per condition")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument(
+        "--conditions", default=",".join(CONDITIONS), help="comma-separated condition names"
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
-    plan = EvaluationPlan("pile_loader", {}, CONDITIONS, episodes=args.episodes, seed=1)
-    episodes = args.episodes * len(CONDITIONS)
+    conditions = tuple(args.conditions.split(","))
+    plan = EvaluationPlan("pile_loader", {}, conditions, episodes=args.episodes, seed=1)
+    episodes = args.episodes * len(conditions)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         actor = ActorController(saved_actor(root))
@@ -150,7 +156,7 @@ def main() -> None:
             )
     baseline = rows[0][1][1]
     print(
-        f"{episodes} episodes ({args.episodes} per condition of {CONDITIONS}), best of "
+        f"{episodes} episodes ({args.episodes} per condition of {conditions}), best of "
         f"{args.repeats}"
     )
     print(f"| {'case':<36} | wall s | CPU s | episodes/CPU s | CPU vs hand loop |")

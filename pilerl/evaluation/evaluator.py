@@ -2,11 +2,14 @@
 
 Episode i of every condition starts from the same seeded pose (start distance, approach
 angle), so controllers and conditions are compared on paired starts. Episodes run as
-rollouts (``pilerl.sim.rollout``): the episodes of a condition are cut into chunks, each
-one batched rollout (episode ``i`` seeded ``seed * 100_000 + i``), and the chunks run in
-worker processes (one thread each). An episode's result depends neither on its chunk nor
-on its worker (operators act per episode, actors row by row), and the records come back
-in episode order, so the result does not depend on the number of workers.
+rollouts (``pilerl.sim.rollout``): the plan's episodes, condition after condition, are cut
+into chunks, each one batched rollout whose simulators may hold different conditions
+(episode ``i`` of a condition seeded ``seed * 100_000 + i``; one episode in each of five
+conditions is one rollout of five simulators, so TorchRL's per-step cost is paid once for
+the five), and the chunks run in worker processes (one thread each). An episode's result
+depends neither on its chunk nor on its worker (operators act per episode, actors row by
+row), and the records come back in episode order, so the result does not depend on the
+number of workers.
 
 A controller is the scripted operator (``ScriptedController``), a saved actor
 (``ActorController``) or an actor in memory (``ActorWeights.of(actor)``, what fine-tuning
@@ -106,8 +109,13 @@ class ActorWeights:
         return policy_actor(policy).eval()
 
     def policy(self, env: SimulatorBatchEnv) -> TensorDictModuleBase:
-        """The actor, acting on each simulator of ``env`` alone (``RowByRow``)."""
-        return RowByRow(self.build())
+        """The actor for acting only (``inference_actor``: traced, bit-identical outputs,
+        ~60% of the module's time per row; the random forest as it is), acting on each
+        simulator of ``env`` alone (``RowByRow``)."""
+        from pilerl.policies.actors import RandomForestActor, inference_actor
+
+        actor = self.build()
+        return RowByRow(actor if isinstance(actor, RandomForestActor) else inference_actor(actor))
 
 
 @dataclass(frozen=True)
@@ -159,7 +167,10 @@ class EvaluationPlan:
         return self.seed * 100_000 + index
 
 
-# One batched env per (plan, condition, chunk size), kept for the life of the process:
+# (condition, episode index) of each simulator of a rollout
+Chunk = tuple[tuple[str, int], ...]
+
+# One batched env per (plan, conditions of a chunk), kept for the life of the process:
 # building a simulator costs ~0.15 s against ~0.5 s for an episode. ``evaluate`` builds them
 # before forking its workers, which inherit them. ``reset(seed=...)`` restores every state
 # an episode depends on (tested: results do not depend on which episodes ran before).
@@ -174,13 +185,14 @@ def evaluation_info(simulator: str) -> tuple[str, ...]:
     return tuple(dict.fromkeys((*declared, *plugin.episode_info)))
 
 
-def _cached_env(plan: EvaluationPlan, condition: str, num_envs: int) -> SimulatorBatchEnv:
-    key = (plan.simulator, repr(sorted(plan.env_kwargs.items())), condition, num_envs)
+def _cached_env(plan: EvaluationPlan, conditions: tuple[str, ...]) -> SimulatorBatchEnv:
+    """Simulators in ``conditions``, one each, as one env."""
+    key = (plan.simulator, repr(sorted(plan.env_kwargs.items())), conditions)
     if key not in _ENVS:
         _ENVS[key] = make_rollout_env(
             plan.simulator,
-            {**plan.env_kwargs, "condition": condition},
-            num_envs=num_envs,
+            plan.env_kwargs,
+            each=[{"condition": condition} for condition in conditions],
             info_keys=evaluation_info(plan.simulator),
         )
     return _ENVS[key]
@@ -190,8 +202,8 @@ def build_envs(plan: EvaluationPlan, *, workers: int = 1) -> None:
     """Build (and keep) the envs that evaluating ``plan`` on ``workers`` processes uses: a
     bad condition or simulator argument fails here, before any work, and forked workers
     inherit them."""
-    for condition, _, count in _chunks(plan, workers):
-        _cached_env(plan, condition, count)
+    for chunk in _chunks(plan, workers):
+        _cached_env(plan, tuple(condition for condition, _ in chunk))
 
 
 def clear_caches() -> None:
@@ -201,33 +213,29 @@ def clear_caches() -> None:
     _ENVS.clear()
 
 
-def _chunks(plan: EvaluationPlan, workers: int) -> list[tuple[str, int, int]]:
-    """(condition, first episode, episodes) of each rollout: enough chunks to keep
-    ``workers`` busy, at most ``MAX_EPISODES_PER_ROLLOUT`` episodes each."""
-    per_condition = max(1, math.ceil(workers / len(plan.conditions)))
-    size = min(MAX_EPISODES_PER_ROLLOUT, max(1, math.ceil(plan.episodes / per_condition)))
-    return [
-        (condition, first, min(size, plan.episodes - first))
-        for condition in plan.conditions
-        for first in range(0, plan.episodes, size)
-    ]
+def _chunks(plan: EvaluationPlan, workers: int) -> list[Chunk]:
+    """The episodes of each rollout, in record order (condition after condition): enough
+    chunks to keep ``workers`` busy, at most ``MAX_EPISODES_PER_ROLLOUT`` episodes each."""
+    episodes = [(c, i) for c in plan.conditions for i in range(plan.episodes)]
+    size = min(MAX_EPISODES_PER_ROLLOUT, max(1, math.ceil(len(episodes) / max(workers, 1))))
+    return [tuple(episodes[first : first + size]) for first in range(0, len(episodes), size)]
 
 
-def _run_chunk(controller, plan: EvaluationPlan, condition: str, first: int, count: int):
-    """Records of episodes ``first`` .. ``first + count - 1`` of ``condition``."""
+def _run_chunk(controller, plan: EvaluationPlan, chunk: Chunk) -> list[dict]:
+    """Records of the chunk's episodes, one rollout."""
     torch.set_num_threads(1)
-    env = _cached_env(plan, condition, count)
-    run = rollout(env, controller.policy(env), seed=plan.episode_seed(first))
+    env = _cached_env(plan, tuple(condition for condition, _ in chunk))
+    run = rollout(env, controller.policy(env), seed=[plan.episode_seed(i) for _, i in chunk])
     return [
         episode_record(
             run,
-            i,
+            k,
             controller=controller.name,
             condition=condition,
-            index=first + i,
+            index=index,
             simulator=plan.simulator,
         )
-        for i in range(count)
+        for k, (condition, index) in enumerate(chunk)
     ]
 
 
@@ -286,11 +294,11 @@ def evaluate(
     )
     records = []
     if workers <= 1 or len(chunks) == 1:
-        for condition, first, count in chunks:
-            records.extend(_run_chunk(controller, plan, condition, first, count))
-            bar.update(count)
+        for chunk in chunks:
+            records.extend(_run_chunk(controller, plan, chunk))
+            bar.update(len(chunk))
     else:
-        jobs = [(controller, plan, *chunk) for chunk in chunks]
+        jobs = [(controller, plan, chunk) for chunk in chunks]
         with process_pool(min(workers, len(chunks))) as pool:
             for chunk_records in pool.map(_run_chunk, *zip(*jobs, strict=True)):
                 records.extend(chunk_records)

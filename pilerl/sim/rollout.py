@@ -8,11 +8,14 @@ TensorDict modules reading the sensors by name and writing ``action``.
 ``rollout(env, policy, seed=s)`` runs one episode in each of the env's N simulators:
 simulator ``i`` starts from seed ``s + i`` (``SimulatorBatchEnv.set_seed``), so a batch
 of N episodes starting at seed ``s`` is the same as N single-episode rollouts with seeds
-``s, s + 1, ...``. Episodes end at different steps: TorchRL's partial steps
-(``break_when_all_done``) stop stepping a simulator whose episode has ended, and the
-rollout ends when all have. The result's tensordict has batch ``[N, T]``
-(``T`` = the longest episode); an ended episode's rows repeat its last row, and
-``Rollout.episode(i)`` cuts episode ``i`` to its own length.
+``s, s + 1, ...``. Episodes end at different steps: a simulator whose episode has ended
+is no longer stepped nor acted for (TorchRL's partial-step mask ``_step``, which the
+policy reads too), and the rollout ends when all have
+(``SimulatorBatchEnv.episodes_ending_together``: TorchRL's ``break_when_any_done`` then
+stops at the last end, without rebuilding every row under a mask as
+``break_when_all_done`` does). The result's tensordict has batch ``[N, T]``
+(``T`` = the longest episode); an ended episode's rows repeat its last row (filled in
+once, after the rollout), and ``Rollout.episode(i)`` cuts episode ``i`` to its own length.
 
 Each row ``t`` holds the readings before step ``t`` (sensors, and the ``info`` columns of
 the reset or the previous step), what the policy wrote, and under ``"next"`` the
@@ -44,16 +47,22 @@ def make_rollout_env(
     *,
     num_envs: int = 1,
     info_keys: Sequence[str] = (),
+    each: Sequence[Mapping[str, object]] = (),
 ) -> SimulatorBatchEnv:
     """``num_envs`` simulators ``simulator(**env_kwargs)`` as one TorchRL env for ``rollout``.
 
     ``info_keys`` are the ``info`` entries copied into every row (one float64 column each
     of the entry ``info``, NaN where the simulator does not report one; ``Rollout.info``
     reads them by name); the reward is kept in float64, as the simulator reports it.
+    ``each``: one mapping of arguments per simulator, on top of ``env_kwargs`` (e.g. each
+    its own ``condition``); ``num_envs`` is then ``len(each)``.
     """
     kwargs = dict(env_kwargs)
+    own = iter([dict(options) for options in each])
+    if each:
+        num_envs = len(each)
     return SimulatorBatchEnv(
-        lambda: make_gym_env(simulator, **kwargs),
+        lambda: make_gym_env(simulator, **kwargs, **next(own, {})),
         num_envs,
         info_keys=info_keys,
         reward_dtype=torch.float64,
@@ -120,7 +129,7 @@ def rollout(
     env: SimulatorBatchEnv,
     policy: Callable[[TensorDictBase], TensorDictBase],
     *,
-    seed: int,
+    seed: int | Sequence[int],
     max_steps: int = MAX_STEPS,
     frame_stride: int = 0,
     progress: str | None = None,
@@ -131,7 +140,7 @@ def rollout(
         env: from ``make_rollout_env``.
         policy: a TensorDict module writing ``action``; its ``reset()``, if it has one,
             is called first (operators start each episode afresh).
-        seed: env seed of the first episode.
+        seed: env seed of the first episode, or one seed per simulator.
         max_steps: stop after this many steps even if episodes go on.
         frame_stride: render every simulator (made with ``render_mode="rgb_array"``)
             after reset and every ``frame_stride`` steps (0: no frames).
@@ -141,10 +150,12 @@ def rollout(
     reset = getattr(policy, "reset", None)
     if callable(reset):
         reset()
-    env.set_seed(seed)
+    seeds = [seed + i for i in range(n)] if isinstance(seed, int) else [int(s) for s in seed]
+    env.seed_episodes(seeds)
     start = env.reset()
     frames: list[list[np.ndarray]] = [[] for _ in range(n)]
-    ended = np.zeros(n, dtype=bool)
+    running = np.ones(n, dtype=bool)
+    ended_at = np.zeros(n, dtype=np.int64)  # steps of each ended episode (0: runs on)
     bar = tqdm(desc=progress, unit="step", leave=False, disable=progress is None, mininterval=1.0)
     steps = 0
 
@@ -154,40 +165,64 @@ def rollout(
 
     def after_step(_env, tensordict: TensorDictBase) -> None:
         # called after every step but the last: the state after ``steps`` steps
-        nonlocal steps, ended
+        nonlocal steps, running
         steps += 1
         bar.update()
         if frame_stride and steps % frame_stride == 0:
-            film(~ended)
-        ended = tensordict.get("done").reshape(n).numpy().copy()
+            film(running)
+        running = env.running
+        ended_at[(ended_at == 0) & ~running] = steps
+        tensordict.set(PARTIAL_STEP_KEY, torch.from_numpy(running.copy()))
 
     if frame_stride:
-        film(np.ones(n, dtype=bool))
-    with torch.no_grad():
+        film(running)
+    start.set(PARTIAL_STEP_KEY, torch.ones(n, dtype=torch.bool))
+    with torch.no_grad(), env.episodes_ending_together():
         data = env.rollout(
             max_steps,
             policy,
             callback=after_step,
             auto_reset=False,
             tensordict=start,
-            break_when_any_done=False,
-            break_when_all_done=True,
+            break_when_any_done=True,
         )
+        terminated, truncated = env.end_flags
     bar.update()
     bar.close()
-    done = data.get(("next", "done")).reshape(n, -1).numpy()
     last = data.batch_size[1]
-    lengths = [int(np.argmax(row)) + 1 if row.any() else last for row in done]
+    lengths = [int(at) if at else last for at in ended_at]
+    data = _hold_ended_rows(data.exclude(PARTIAL_STEP_KEY), lengths, terminated, truncated)
     if frame_stride and last % frame_stride == 0:  # the final state of the last episodes
         film(np.array([length == last for length in lengths]))
     return Rollout(
         data=data,
         lengths=lengths,
-        seeds=[seed + i for i in range(n)],
+        seeds=seeds,
         info_keys=env.info_keys,
         frames=frames,
         frame_stride=frame_stride,
     )
+
+
+def _hold_ended_rows(
+    data: TensorDictBase, lengths: list[int], terminated: np.ndarray, truncated: np.ndarray
+) -> TensorDictBase:
+    """``data`` [N, T] with each episode's end flags written into its last row (the env
+    held them back while other episodes ran) and that row repeated after it."""
+    last = data.batch_size[1]
+    after = data.get("next")
+    for i, length in enumerate(lengths):
+        if length < last:
+            end = length - 1
+            after.get("terminated")[i, end] = bool(terminated[i, 0])
+            after.get("truncated")[i, end] = bool(truncated[i, 0])
+            after.get("done")[i, end] = bool(terminated[i, 0] or truncated[i, 0])
+    for key in data.keys(include_nested=True, leaves_only=True):
+        column = data.get(key)
+        for i, length in enumerate(lengths):
+            if length < last:
+                column[i, length:] = column[i, length - 1]
+    return data
 
 
 class RowByRow(TensorDictModuleBase):

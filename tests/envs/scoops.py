@@ -15,6 +15,18 @@ SENSIBLE: dict = {}
 EARLY_BOOM = {"jumpy": True, "impact_hold_s": 0.0}  # lifts on a false impact cue
 NO_BOOM = {"impact_rise_mpa": 1000.0}  # never feels the impact: pushes on
 
+# the pile loader's sensor readings at rest before the pile (rad, MPa): what the operator
+# tests feed the expert by hand
+REST = {
+    "boom_angle": -0.45,
+    "bucket_angle": 0.45,
+    "drive_pressure": 4.0,
+    "telescope_pressure": 0.8,
+    "boom_pressure": 2.8,
+    "bucket_pressure": 0.8,
+    "pump_angle": 0.1,
+}
+
 
 @dataclass
 class Scoop:

@@ -7,21 +7,13 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from pilerl_pile_loader.operator import OPTIONS, PHASES, OperatorStyle, make_expert
+from scoops import REST
 
 import pilerl  # noqa: F401  (registers pilerl/PileLoading-v0)
 from pilerl.evaluation.metrics import explainable_variance
 
 DT = 0.05
 CONTROLLER_SENSORS = ("boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure")
-REST = {
-    "boom_angle": -0.45,
-    "bucket_angle": 0.45,
-    "drive_pressure": 4.0,
-    "telescope_pressure": 0.8,
-    "boom_pressure": 2.8,
-    "bucket_pressure": 0.8,
-    "pump_angle": 0.1,
-}
 
 
 def test_unknown_options_are_refused_with_the_known_ones():

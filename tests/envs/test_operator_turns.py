@@ -5,17 +5,9 @@ from __future__ import annotations
 
 import pytest
 from pilerl_pile_loader.operator import make_expert
+from scoops import REST
 
 DT = 0.05
-REST = {
-    "boom_angle": -0.45,
-    "bucket_angle": 0.45,
-    "drive_pressure": 4.0,
-    "telescope_pressure": 0.8,
-    "boom_pressure": 2.8,
-    "bucket_pressure": 0.8,
-    "pump_angle": 0.1,
-}
 IMPACT = {**REST, "drive_pressure": 25.0, "boom_pressure": 20.0}  # boom at its relief
 
 

@@ -6,12 +6,13 @@ document wrote (demonstrations, datasets, checkpoints). A block whose info strin
 file (```yaml file=mapping.yaml) is written to that file when it is reached, so a
 walk-through's mapping or script is the one its commands use. Recipes and ``python -m``
 modules run in this process (imports are paid once); budgets are cut through overrides
-(``TINY``), which only shrink episodes, steps and frames. Documents that begin with the
-same commands (README, experiments, training and fine-tuning all record demonstrations
-first) run them once per session: a later document starts from a copy of the working
-directory those commands left (``SharedPrefixes``). A command that cannot run here
-says why in ``NOT_RUN``: the README's two front-door commands (CI runs them as written),
-a Ray cluster's commands, and commands over a user's own files. Every other command must
+(``TINY``), which only shrink episodes, steps, frames and an Optuna sweep's trials.
+Documents that begin with the same commands (README, experiments, training and
+fine-tuning all record demonstrations first) run them once per session: a later
+document starts from a copy of the working directory those commands left
+(``SharedPrefixes``). A command that cannot run here says why in ``NOT_RUN``: the
+README's two front-door commands (CI runs them as written), a Ray cluster's commands,
+and commands over a user's own files. Every other command must
 run and exit 0, so the documents cannot drift from the code.
 """
 
@@ -60,6 +61,8 @@ TINY = {
     "pipeline.py": [],
     "deploy.py": ["hil.episodes=1"],
 }
+# trials of a documented Optuna sweep (tests/training/test_training.py's search runs 3)
+TINY_OPTUNA_TRIALS = 3
 # options appended to a ``python -m`` module's command (argparse: the last one counts)
 TINY_MODULES = {"pilerl.deploy faults": ["--cases", "1"]}
 PLUGIN_TEST = (
@@ -184,6 +187,8 @@ def run_command(command: Command) -> None:
             if "algorithm=td3bc" in command.text:  # PPO's minibatches are not TD3+BC's
                 tiny = [o for o in tiny if "minibatch" not in o]
                 tiny += ["algorithm.updates_per_batch=2", "algorithm.batch_size=32"]
+            if "hydra/sweeper=bc_optuna" in command.text:  # Optuna's budget: its trials
+                tiny = [*tiny, f"hydra.sweeper.n_trials={TINY_OPTUNA_TRIALS}"]
             sys.argv = [str(recipe), *argv[1:], *tiny]
             runpy.run_path(str(recipe), run_name="__main__")
         else:

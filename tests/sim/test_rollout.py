@@ -222,6 +222,30 @@ def test_fine_tuning_evaluates_the_actor_in_memory_as_it_is_now():
     assert driving["summer"]["fill_mean"] > 0.0
 
 
+def test_simulators_of_one_rollout_may_differ_in_arguments_and_seeds():
+    """What the evaluator batches: one episode in each of several conditions."""
+
+    class Push(TensorDictModuleBase):
+        in_keys, out_keys = ["position"], ["action"]
+
+        def forward(self, tensordict):
+            return tensordict.set("action", torch.full((*tensordict.batch_size, 1), 0.3))
+
+    conditions = [{"condition": "heavy"}, {"condition": "nominal"}, {"condition": "heavy"}]
+    mixed = make_rollout_env("toy_cart", {}, each=conditions, info_keys=("success",))
+    run = rollout(mixed, Push(), seed=[7, 3, 9])
+    assert run.seeds == [7, 3, 9]
+    assert [sim.unwrapped.condition for sim in mixed.simulators] == ["heavy", "nominal", "heavy"]
+    for i, (options, seed) in enumerate(zip(conditions, run.seeds, strict=True)):
+        single = make_rollout_env("toy_cart", options, info_keys=("success",))
+        alone = rollout(single, Push(), seed=seed)
+        mine, theirs = run.episode(i), alone.episode(0)
+        assert run.lengths[i] == alone.lengths[0]
+        for key in mine.keys(include_nested=True, leaves_only=True):
+            assert torch.equal(mine.get(key), theirs.get(key)), key
+    assert not torch.equal(run.episode(0).get("position"), run.episode(2).get("position"))
+
+
 def test_a_filmed_rollout_has_a_frame_at_reset_and_every_stride_steps():
     env = make_rollout_env(
         "pile_loader",
