@@ -55,14 +55,20 @@ def make_rollout_env(
     of the entry ``info``, NaN where the simulator does not report one; ``Rollout.info``
     reads them by name); the reward is kept in float64, as the simulator reports it.
     ``each``: one mapping of arguments per simulator, on top of ``env_kwargs`` (e.g. each
-    its own ``condition``); ``num_envs`` is then ``len(each)``.
+    its own ``condition``, which replaces one in ``env_kwargs``); ``num_envs`` is then
+    ``len(each)``, and a different ``num_envs`` is refused.
     """
     kwargs = dict(env_kwargs)
     own = iter([dict(options) for options in each])
     if each:
+        if num_envs not in (1, len(each)):
+            raise ValueError(
+                f"make_rollout_env: num_envs={num_envs} but {len(each)} per-simulator "
+                "argument sets in each="
+            )
         num_envs = len(each)
     return SimulatorBatchEnv(
-        lambda: make_gym_env(simulator, **kwargs, **next(own, {})),
+        lambda: make_gym_env(simulator, **{**kwargs, **next(own, {})}),
         num_envs,
         info_keys=info_keys,
         reward_dtype=torch.float64,
@@ -212,11 +218,11 @@ def _hold_ended_rows(
     last = data.batch_size[1]
     after = data.get("next")
     for i, length in enumerate(lengths):
-        if length < last:
+        if terminated[i, 0] or truncated[i, 0]:  # also an episode ending on the last row
             end = length - 1
             after.get("terminated")[i, end] = bool(terminated[i, 0])
             after.get("truncated")[i, end] = bool(truncated[i, 0])
-            after.get("done")[i, end] = bool(terminated[i, 0] or truncated[i, 0])
+            after.get("done")[i, end] = True
     for key in data.keys(include_nested=True, leaves_only=True):
         column = data.get(key)
         for i, length in enumerate(lengths):

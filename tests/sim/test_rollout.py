@@ -246,6 +246,37 @@ def test_simulators_of_one_rollout_may_differ_in_arguments_and_seeds():
     assert not torch.equal(run.episode(0).get("position"), run.episode(2).get("position"))
 
 
+class PushCart(TensorDictModuleBase):
+    in_keys, out_keys = ["position"], ["action"]
+
+    def forward(self, tensordict):
+        return tensordict.set("action", torch.full((*tensordict.batch_size, 1), 0.3))
+
+
+def test_an_episode_ending_on_the_last_step_of_a_cut_rollout_keeps_its_end_flags():
+    """``max_steps`` equal to the shortest episode: that episode ends on the rollout's last
+    row while the others still run; its end flags must still be written there."""
+    env = make_rollout_env("pile_loader", ENV, num_envs=3)
+    full = rollout(env, scripted(env, 3), seed=40)
+    shortest = int(np.argmin(full.lengths))
+    assert full.lengths[shortest] < max(full.lengths)
+    cut = rollout(env, scripted(env, 3), seed=40, max_steps=full.lengths[shortest])
+    for i in range(3):
+        done = bool(cut.episode(i).get(("next", "done"))[-1])
+        assert done == (i == shortest), i
+    assert torch.equal(
+        cut.episode(shortest).get(("next", "terminated")),
+        full.episode(shortest).get(("next", "terminated")),
+    )
+
+
+def test_per_simulator_arguments_replace_the_shared_ones():
+    both = make_rollout_env("toy_cart", {"condition": "heavy"}, each=[{"condition": "nominal"}])
+    assert [sim.unwrapped.condition for sim in both.simulators] == ["nominal"]
+    with pytest.raises(ValueError, match="num_envs=3 but 2 per-simulator"):
+        make_rollout_env("toy_cart", {}, num_envs=3, each=[{}, {}])
+
+
 def test_a_filmed_rollout_has_a_frame_at_reset_and_every_stride_steps():
     env = make_rollout_env(
         "pile_loader",
