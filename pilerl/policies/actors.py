@@ -135,13 +135,25 @@ def inference_actor(actor: TensorDictModule | SensorPolicy) -> InferenceActor:
         graph = torch.jit.freeze(torch.jit.trace(policy, example, check_trace=False))
         for rows in INFERENCE_CHECK_ROWS:
             readings = example_readings(policy, rows, seed=rows)
-            expected, traced = policy(*readings), graph(*readings)
-            if not all(torch.equal(a, b) for a, b in zip(expected, traced, strict=True)):
-                raise ValueError(
-                    f"inference_actor: the traced {policy.config.controller!r} differs from "
-                    f"the module on {rows} row(s); use the TensorDictModule actor"
-                )
+            cases = [(f"{rows} row(s)", readings)]
+            if rows == 1:  # also one unbatched reading [1] per sensor, as RowByRow sends
+                cases.append(("one unbatched reading", tuple(r[0] for r in readings)))
+            for what, inputs in cases:
+                expected, traced = policy(*inputs), graph(*inputs)
+                if not all(_same(a, b) for a, b in zip(expected, traced, strict=True)):
+                    raise ValueError(
+                        f"inference_actor: the traced {policy.config.controller!r} differs "
+                        f"from the module on {what}; use the TensorDictModule actor"
+                    )
     return InferenceActor(graph, in_keys=policy.in_keys, out_keys=policy.out_keys)
+
+
+def _same(expected: torch.Tensor, traced: torch.Tensor) -> bool:
+    """Bit-identical outputs, NaN where the module gives NaN (a diverged actor's NaN
+    outputs are the module's too; acting then fails where the simulator checks actions)."""
+    return torch.equal(expected.isnan(), traced.isnan()) and torch.equal(
+        expected.nan_to_num(0.0), traced.nan_to_num(0.0)
+    )
 
 
 def example_readings(policy: SensorPolicy, rows: int, seed: int = 0) -> tuple[torch.Tensor, ...]:

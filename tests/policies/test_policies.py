@@ -216,6 +216,22 @@ def test_inference_actor_is_a_snapshot_and_checks_its_inputs() -> None:
         inference_actor(forest)
 
 
+@pytest.mark.parametrize("name", ["nnetv2", "dannet"])
+def test_a_diverged_actor_is_traced_with_the_module_s_nan_outputs(name: str) -> None:
+    """A NaN weight (a diverged fine-tune) is no trace defect: the trace gives the module's
+    NaN, and acting fails later where the simulator checks its actions."""
+    actor = make_neural_actor(name, None).eval()
+    with torch.no_grad():
+        next(actor.parameters()).view(-1)[0] = float("nan")
+    fast = inference_actor(actor)
+    observations = make_observations()
+    expected = actor(observations.clone())["action"]
+    got = fast(observations.clone())["action"]
+    assert expected.isnan().any()
+    assert torch.equal(got.isnan(), expected.isnan())
+    assert torch.equal(got.nan_to_num(0.0), expected.nan_to_num(0.0))
+
+
 def test_dannet_output_is_tanh_of_masked_pre_activation() -> None:
     policy = make_controller(
         "dannet", sensors=SENSORS, attention_sensors=ALL_SENSORS, stats=make_stats()
