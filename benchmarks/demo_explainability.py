@@ -63,9 +63,32 @@ def build_operator(kind: str, dt: float, rng: np.random.Generator, trigger_senso
     return make_expert(dt=dt, rng=rng, trigger_sensor=trigger_sensor, executed_noise=noise)
 
 
+def soil_options(pairs: list[str]) -> dict[str, object]:
+    """``--soil-option KEY=VALUE`` pairs as the simulator's ``soil_options`` (``true`` and
+    ``false`` as booleans, numbers as floats, anything else as text)."""
+    options: dict[str, object] = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        if not sep or not key:
+            raise SystemExit(f"--soil-option: expected KEY=VALUE, got {pair!r}")
+        if text in ("true", "false"):
+            options[key] = text == "true"
+        else:
+            try:
+                options[key] = float(text)
+            except ValueError:
+                options[key] = text
+    return options
+
+
 def record(kind: str, args: argparse.Namespace) -> dict:
     """Record ``args.episodes`` episodes with operator ``kind``; readings, labels, results."""
-    env = gym.make("pilerl/PileLoading-v0", condition=args.condition, control_hz=args.hz)
+    env = gym.make(
+        "pilerl/PileLoading-v0",
+        condition=args.condition,
+        control_hz=args.hz,
+        soil_options=soil_options(args.soil_option),
+    )
     dt = float(env.unwrapped.dt)
     episodes, lengths, successes, fills = [], [], [], []
     for i in range(args.episodes):
@@ -120,6 +143,12 @@ def main() -> None:
     parser.add_argument("--condition", default="summer")
     parser.add_argument("--trigger", default="drive_pressure")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--soil-option",
+        nargs="*",
+        default=[],
+        help="KEY=VALUE soil options, e.g. body_resistance=true intake=mouth (docs/soil_models.md)",
+    )
     args = parser.parse_args()
 
     print(

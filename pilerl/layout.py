@@ -12,7 +12,7 @@ stages each write into a subdirectory of its own (``bc/``, ``finetune/``...). A
 | ``metrics`` | ``metrics.json`` | ``finish_run``: the run's scalar results |
 | ``done`` | ``done.json`` | ``finish_run``: the completion marker (after ``metrics``) |
 | ``best_actor`` | ``best.pt`` | BC and fine-tuning: the actor to evaluate or deploy |
-| ``final_actor`` | ``final.pt`` | fine-tuning: the actor at the end of the budget |
+| ``final_actor`` | ``final.pt`` | BC and fine-tuning: the actor at the end of the budget |
 | ``bc_state`` | ``last.pt`` | behaviour cloning: the resumable training state |
 | ``rl_state`` | ``last.ckpt`` | fine-tuning: the resumable run (``pilerl.rl.run_checkpoint``) |
 | ``losses_plot`` | ``losses.png`` | behaviour cloning: the loss curves |

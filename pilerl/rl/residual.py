@@ -166,14 +166,14 @@ def save_residual_actor(path: str | Path, actor: nn.Module) -> Path:
     return write_checkpoint(path, payload)
 
 
-def load_residual_actor(path: str | Path) -> TensorDictModule:
+def load_residual_actor(path: str | Path, what: str = "residual actor") -> TensorDictModule:
     """Rebuild a saved residual actor on the CPU, in eval mode."""
     from pilerl.policies.checkpoint import rebuild_policy
     from pilerl.policies.config import ActorConfig
 
     path = Path(path)
     payload = read_checkpoint(
-        path, expected_format=RESIDUAL_FORMAT, version=RESIDUAL_VERSION, what="residual actor"
+        path, expected_format=RESIDUAL_FORMAT, version=RESIDUAL_VERSION, what=what
     )
     settings = parse_json(path, payload.get("residual"), "residual")
     if not isinstance(settings, dict) or set(settings) != {"hidden", "scale"}:
@@ -198,7 +198,8 @@ def controller_for(actor: nn.Module | str | Path):
     """
     if isinstance(actor, str | Path):
         try:
-            return ResidualWeights.of(load_residual_actor(actor))
+            probe = "actor checkpoint (residual or cloned)"
+            return ResidualWeights.of(load_residual_actor(actor, what=probe))
         except CheckpointFormatError:
             return ActorController(str(actor))
     if residual_policy(actor) is not None:
