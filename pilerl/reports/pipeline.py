@@ -77,12 +77,7 @@ def write_pipeline_report(
         + (f", s′ = {config.sensors.s_prime}" if config.sensors.s_prime else "")
         + f"; {config.bc.gradient_steps} gradient steps of {config.bc.batch_size}, RAdam "
         f"lr {config.bc.learning_rate:g}, seed {config.bc.seed}; the cloned controller is "
-        + (
-            "final.pt, the weights after the whole budget (the winter validation loss is "
-            "plotted, not used to choose)."
-            if config.bc.selection == "final"
-            else "best.pt, the epoch with the lowest validation loss on the winter demonstrations."
-        )
+        + cloned_text(config, out)
     )
     report.image("bc/losses.png", "Training and validation loss")
 
@@ -168,3 +163,17 @@ def write_pipeline_report(
         report.paragraph("The paper has no winter number for this controller and sensor set.")
     markdown, _ = report.write(out)
     return markdown
+
+
+def cloned_text(config, out: Path) -> str:
+    """Which weights the report calls the cloned controller (``finetune.checkpoint``: the
+    file evaluated as cloned and fine-tuned)."""
+    chosen = Path(config.finetune.checkpoint)
+    if chosen.resolve() != (out / "bc" / f"{config.bc.selection}.pt").resolve():
+        return f"{chosen} (set by finetune.checkpoint, not this run's BC step)."
+    if config.bc.selection == "final":
+        return (
+            "final.pt, the weights after the whole budget (the winter validation loss is "
+            "plotted, not used to choose)."
+        )
+    return "best.pt, the epoch with the lowest validation loss on the winter demonstrations."

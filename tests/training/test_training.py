@@ -128,6 +128,29 @@ def test_the_pipeline_clones_the_final_weights_unless_told(tmp_path):
         BCStepConfig(selection="last")
 
 
+def test_the_report_names_the_weights_it_calls_cloned(tmp_path):
+    from types import SimpleNamespace
+
+    from pilerl.reports.pipeline import cloned_text
+
+    def config(selection: str, checkpoint: Path) -> SimpleNamespace:
+        return SimpleNamespace(
+            bc=SimpleNamespace(selection=selection),
+            finetune=SimpleNamespace(checkpoint=str(checkpoint)),
+        )
+
+    assert cloned_text(config("final", tmp_path / "bc" / "final.pt"), tmp_path).startswith(
+        "final.pt, the weights after the whole budget"
+    )
+    assert cloned_text(config("best", tmp_path / "bc" / "best.pt"), tmp_path).startswith(
+        "best.pt, the epoch with the lowest validation loss"
+    )
+    elsewhere = tmp_path / "other" / "actor.pt"
+    assert cloned_text(config("final", elsewhere), tmp_path) == (
+        f"{elsewhere} (set by finetune.checkpoint, not this run's BC step)."
+    )
+
+
 def test_corrupt_training_checkpoint_is_refused(datasets, tmp_path):
     _, train, _ = datasets
     (tmp_path / "last.pt").write_bytes(b"not a checkpoint")
