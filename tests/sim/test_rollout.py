@@ -277,6 +277,19 @@ def test_per_simulator_arguments_replace_the_shared_ones():
         make_rollout_env("toy_cart", {}, num_envs=3, each=[{}, {}])
 
 
+def test_sub_env_seeds_are_checked_and_a_reset_starts_every_episode_running():
+    """What the rollout reads between steps: one seed per sub-env, and after a reset every
+    sub-env running with no end flags (the held-back ends are covered by the cut rollout
+    above and the batched-rollout test)."""
+    env = make_rollout_env("toy_cart", {}, each=[{"condition": "heavy"}, {}])
+    with pytest.raises(ValueError, match="3 seeds for 2 sub-envs"):
+        env.seed_episodes([1, 2, 3])
+    env.seed_episodes([7, 3])
+    env.reset()
+    assert env.running.tolist() == [True, True]
+    assert not env.end_flags[0].any() and not env.end_flags[1].any()
+
+
 def test_a_filmed_rollout_has_a_frame_at_reset_and_every_stride_steps():
     env = make_rollout_env(
         "pile_loader",
