@@ -216,6 +216,9 @@ class RLPDConfig(LearnerConfig):
             noise; 8 x 500 frames, about 8-10 scoops) that train only the critics, before
             any actor update.
         warmup_utd_ratio: critic gradient steps per collected frame during the warm-up.
+        calibrated_critic: raise the TD target of every demonstration transition to at
+            least its Monte-Carlo discounted return (``pilerl.rl.calibration``, after
+            Cal-QL); false keeps plain RLPD.
         (The rest: ``LearnerConfig``.)
     """
 
@@ -241,9 +244,15 @@ class RLPDConfig(LearnerConfig):
     residual_scale: float = 0.2
     residual_hidden: list[int] = field(default_factory=lambda: [64, 64])
     warmup_utd_ratio: float = 1.0
+    calibrated_critic: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if not isinstance(self.calibrated_critic, bool):
+            raise ValueError(
+                f"algorithm.calibrated_critic: must be true or false, "
+                f"got {self.calibrated_critic!r}"
+            )
         for name in ("batch_size", "buffer_size", "policy_delay"):
             checks.positive_int(f"algorithm.{name}", getattr(self, name))
         for name in ("utd_ratio", "warmup_utd_ratio", "tau", "residual_scale"):

@@ -15,7 +15,10 @@ The parts, after Ball et al., "Efficient Online RL with Offline Data" (RLPD, ICM
   ``warmup_utd_ratio``), so the first actor update follows a critic that has seen the
   clone's scoops;
 - optionally **residual RL** (``residual=True``, ``pilerl.rl.residual``): the clone is
-  frozen and a small residual actor, zero at the start, learns a bounded correction.
+  frozen and a small residual actor, zero at the start, learns a bounded correction;
+- optionally a **calibrated critic** (``calibrated_critic=True``,
+  ``pilerl.rl.calibration``): the TD target of a demonstration transition is at least
+  its Monte-Carlo discounted return (after Cal-QL, Nakamoto et al. 2023).
 
 The actor is deterministic (TD3's), so collection adds Gaussian noise
 (``AdditiveGaussianModule``; optimisers, target updates and noise are
@@ -36,6 +39,7 @@ from torchrl.objectives import TD3Loss
 from pilerl.policies import actor_policy
 from pilerl.policies.checkpoint_file import CheckpointError
 
+from .calibration import MC_RETURN, MC_RETURN_KNOWN, calibrate, monte_carlo_returns
 from .config import RLPDConfig
 from .critics import make_q_network
 from .off_policy import TD3Parts
@@ -83,6 +87,8 @@ class RLPDLearner:
             loss_function="l2",
         )
         self.loss.make_value_estimator(gamma=settings.gamma)
+        if settings.calibrated_critic:
+            calibrate(self.loss)
         self.parts = TD3Parts.around(
             self.loss,
             self.actor,
@@ -93,14 +99,18 @@ class RLPDLearner:
             exploration_sigma=settings.exploration_sigma,
         )
         self.keys = sorted(self.loss.in_keys, key=str)
+        # what the replay stores: the loss's keys (and, calibrated, the demo returns)
+        self.stored_keys = list(self.keys)
+        if settings.calibrated_critic:
+            self.stored_keys += [MC_RETURN, MC_RETURN_KNOWN]
         if demos is None:
             raise ValueError("RLPD: needs demonstrations (demos: a dataset directory)")
         missing = [k for k in self.keys if k not in demos.keys(True)]
         if missing:
             raise KeyError(f"demos: no {missing} (RLPD needs next readings and reward)")
-        demo_data = self._as_stored(demos)
-        if torch.isnan(demo_data["next", "reward"]).any():
+        if torch.isnan(demos["next", "reward"]).any():
             raise ValueError("demos: some rewards are NaN (imported logs): RLPD needs rewards")
+        demo_data = self._as_stored(demos, demo_returns=self._demo_returns(demos))
         offline = ReplayBuffer(storage=LazyTensorStorage(demo_data.numel()))
         offline.extend(demo_data)
         self.replay = OfflineToOnlineReplayBuffer(
@@ -121,10 +131,29 @@ class RLPDLearner:
         """The actor to evaluate and save (the residual actor, or the clone trained)."""
         return self.actor
 
-    def _as_stored(self, data: TensorDictBase) -> TensorDictBase:
-        """The loss's keys of ``data``, flat, with a float32 reward (as stored online)."""
+    def _demo_returns(self, demos: TensorDictBase) -> tuple[torch.Tensor, torch.Tensor] | None:
+        """The demonstrations' Monte-Carlo returns (calibrated critic only)."""
+        if not self.settings.calibrated_critic:
+            return None
+        if "episode" not in demos:
+            raise KeyError("demos: no 'episode' ids (the calibrated critic needs episodes)")
+        return monte_carlo_returns(demos.reshape(-1), self.settings.gamma)
+
+    def _as_stored(
+        self,
+        data: TensorDictBase,
+        *,
+        demo_returns: tuple[torch.Tensor, torch.Tensor] | None = None,
+    ) -> TensorDictBase:
+        """The loss's keys of ``data``, flat, with a float32 reward (as stored online);
+        calibrated, with the demonstrations' returns (online data: none known)."""
         stored = data.reshape(-1).select(*self.keys)
         stored.set(("next", "reward"), stored["next", "reward"].float())
+        if self.settings.calibrated_critic:
+            n = stored.numel()
+            returns, known = demo_returns or (torch.zeros(n), torch.zeros(n, dtype=torch.bool))
+            stored.set(MC_RETURN, returns)
+            stored.set(MC_RETURN_KNOWN, known)
         return stored
 
     # ------------------------------------------------------------------ learning
@@ -135,7 +164,7 @@ class RLPDLearner:
         online = self._as_stored(batch)
         self.replay.extend(online)
         steps = self.settings.updates_for(online.numel(), warmup=warmup)
-        q_sum, actor_sum, actor_steps = 0.0, 0.0, 0
+        q_sum, actor_sum, actor_steps, raised_sum = 0.0, 0.0, 0, 0.0
         for _ in range(steps):
             data = self.replay.sample()
             q_loss, _ = self.loss.value_loss(data)
@@ -143,6 +172,8 @@ class RLPDLearner:
             q_loss.backward()
             self.parts.critic_optimizer.step()
             q_sum += float(q_loss.detach())
+            if self.settings.calibrated_critic:
+                raised_sum += self.loss.value_estimator.raised_share
             self.updates += 1
             if not warmup and self.updates % self.settings.policy_delay == 0:
                 actor_loss, _ = self.loss.actor_loss(data)
@@ -160,6 +191,8 @@ class RLPDLearner:
         }
         if actor_steps:
             metrics["loss_actor"] = actor_sum / actor_steps
+        if self.settings.calibrated_critic:
+            metrics["calibration_raised_share"] = raised_sum / steps
         return metrics
 
     # ------------------------------------------------------------------ checkpoints
@@ -199,7 +232,7 @@ class RLPDLearner:
             raise CheckpointError(f"{path}: learner.replay has no valid writer position")
         if size == 0:
             return
-        expected = {_leaf_name(key): key for key in self.keys}
+        expected = {_leaf_name(key): key for key in self.stored_keys}
         if set(data) != set(expected):
             raise CheckpointError(
                 f"{path}: learner.replay holds {sorted(data)}, expected {sorted(expected)}"

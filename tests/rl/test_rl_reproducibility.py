@@ -70,7 +70,7 @@ def tiny_td3bc() -> TD3BCConfig:
     )
 
 
-def tiny_rlpd(*, residual: bool) -> RLPDConfig:
+def tiny_rlpd(*, residual: bool = False, calibrated_critic: bool = False) -> RLPDConfig:
     return RLPDConfig(
         frames_per_batch=64,
         batch_size=32,
@@ -80,6 +80,7 @@ def tiny_rlpd(*, residual: bool) -> RLPDConfig:
         critic_hidden=[16, 16],
         residual=residual,
         residual_hidden=[8],
+        calibrated_critic=calibrated_critic,
     )
 
 
@@ -177,13 +178,18 @@ def test_killed_td3bc_run_resumes_exactly_with_its_replay_buffer(cloned, tmp_pat
     assert_same_weights(final_weights(tmp_path / "killed"), final_weights(tmp_path / "reference"))
 
 
-@pytest.mark.parametrize("residual", [False, True], ids=["rlpd", "rlpd_residual"])
+@pytest.mark.parametrize(
+    "changes",
+    [{}, {"residual": True}, {"calibrated_critic": True}],
+    ids=["rlpd", "rlpd_residual", "rlpd_calibrated"],
+)
 def test_killed_rlpd_run_resumes_exactly_with_its_replay_buffer(
-    cloned, datasets, tmp_path, monkeypatch, residual
+    cloned, datasets, tmp_path, monkeypatch, changes
 ):
     """Killed after its first checkpoint (2 of 4 batches), an RLPD run resumes to the
     uninterrupted run's weights, online replay and update count, bit for bit."""
-    config = tiny_run_config(cloned, tiny_rlpd(residual=residual))
+    residual = changes.get("residual", False)
+    config = tiny_run_config(cloned, tiny_rlpd(**changes))
     config.demos = str(datasets[0] / "d_i")  # RLPD samples half of each batch from these
     finetune(config, tmp_path / "reference", progress=False)
 
