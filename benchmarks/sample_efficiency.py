@@ -104,7 +104,10 @@ def run_config(args: argparse.Namespace, method: str, seed: int, run_dir: Path) 
 
 
 def process_age_s() -> float:
-    """Seconds since this process started (Linux: /proc/self/stat's start time)."""
+    """Seconds since this process started (Linux: /proc/self/stat's start time; NaN
+    where there is no /proc)."""
+    if not Path("/proc/self/stat").is_file():
+        return float("nan")
     start_ticks = int(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
     uptime_s = float(Path("/proc/uptime").read_text().split()[0])
     return uptime_s - start_ticks / os.sysconf("SC_CLK_TCK")
@@ -219,7 +222,8 @@ def _iqm_ci(values: list[float]) -> str:
 
 
 def method_row(method: str, summaries: list[dict]) -> dict:
-    """The table row: censored scoops-to-90 count as the run's budget (shown as '>')."""
+    """The table row. A run that never reached 90% shows '>N' (N: the scoops it reached);
+    the IQM and its interval are given only when most seeds reached 90%, else the count."""
     budgets = sorted({s["scoops_budget"] for s in summaries if s["scoops_budget"] is not None})
     to90 = [s["scoops_to_90"] if s["scoops_to_90"] is not None else s["scoops"] for s in summaries]
     per_seed = ", ".join(
