@@ -11,17 +11,22 @@ here once (``TD3Parts``):
   (``AdditiveGaussianModule``, a constant ``sigma`` in action units of [-1, 1]);
 
 and the checkpoint entries of these parts (``state_dict`` / ``load_state_dict``), which
-a resumed run needs to continue bit for bit.
+a resumed run needs to continue bit for bit. Both learners also checkpoint their online
+replay buffer the same way (``replay_state`` / ``restore_replay``): the stored
+transitions in storage order and the writer's position, every leaf checked against the
+layout the learner stores before anything is written into the buffer.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import torch
+from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictSequential
-from torchrl.data import Bounded
+from torchrl.data import Bounded, ReplayBuffer
 from torchrl.modules import AdditiveGaussianModule
 from torchrl.objectives import LossModule, SoftUpdate
 
@@ -112,3 +117,98 @@ class TD3Parts:
         if not isinstance(updates, int) or isinstance(updates, bool) or updates < 0:
             raise CheckpointError(f"{path}: learner.updates is {updates!r}, not a count")
         return updates
+
+
+NestedKey = str | tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class LeafLayout:
+    """One stored leaf of a replay buffer: its key, the shape of one transition's value
+    (without the leading transition dimension) and its dtype."""
+
+    key: NestedKey
+    per_transition: tuple[int, ...]
+    dtype: torch.dtype
+
+
+def leaf_name(key: NestedKey) -> str:
+    """A nested key as one checkpoint entry name: ``("next", "reward")`` -> ``next/reward``."""
+    return "/".join((key,) if isinstance(key, str) else key)
+
+
+def layout_of(stored: TensorDictBase) -> dict[str, LeafLayout]:
+    """The layout of every leaf of ``stored`` (a batch of transitions, batch dim first)."""
+    return {
+        leaf_name(key): LeafLayout(key, tuple(value.shape[1:]), value.dtype)
+        for key, value in stored.items(include_nested=True, leaves_only=True)
+    }
+
+
+def replay_state(buffer: ReplayBuffer) -> dict[str, object]:
+    """A replay buffer's checkpoint entry: its transitions in storage order (one tensor per
+    leaf), their number and the writer's position (cursor, write count)."""
+    size = len(buffer)
+    data = {}
+    if size:
+        data = {
+            leaf_name(key): value.contiguous()
+            for key, value in buffer.storage[:size].items(include_nested=True, leaves_only=True)
+        }
+    return {"size": size, "data": data, "writer": dict(buffer._writer.state_dict())}
+
+
+def restore_replay(
+    buffer: ReplayBuffer,
+    state: object,
+    *,
+    path: Path,
+    capacity: int,
+    layout: Mapping[str, LeafLayout],
+    written_by_buffer: tuple[str, ...] = (),
+) -> None:
+    """Refill the empty ``buffer`` exactly as ``replay_state`` saved it.
+
+    ``written_by_buffer`` names leaves the buffer writes itself on ``extend`` (a
+    ``TensorDictReplayBuffer``'s ``index``): checked like the others, not passed back.
+
+    Every part is checked first (entry ``learner.replay`` of ``path``): the transition
+    count within ``capacity``, the writer's cursor and write count, the leaves' names
+    against ``layout`` and each leaf's dtype and shape ``[size, *per_transition]``. What does
+    not fit raises ``CheckpointError`` naming the file and the leaf; nothing is written.
+    """
+    if not isinstance(state, dict) or not isinstance(state.get("data"), dict):
+        raise CheckpointError(f"{path}: learner.replay is not a replay buffer state")
+    size, data, writer = state.get("size"), state["data"], state.get("writer")
+    if not isinstance(size, int) or isinstance(size, bool) or not 0 <= size <= capacity:
+        raise CheckpointError(
+            f"{path}: learner.replay holds {size!r} transitions (buffer size {capacity})"
+        )
+    if (
+        not isinstance(writer, dict)
+        or not all(
+            isinstance(writer.get(k), int) and not isinstance(writer[k], bool) and writer[k] >= 0
+            for k in ("_cursor", "_write_count")
+        )
+        or writer["_cursor"] >= capacity
+    ):
+        raise CheckpointError(f"{path}: learner.replay has no valid writer position")
+    if size == 0:
+        return
+    if set(data) != set(layout):
+        raise CheckpointError(
+            f"{path}: learner.replay holds {sorted(data)}, expected {sorted(layout)}"
+        )
+    for name, value in data.items():
+        want = layout[name]
+        want_shape = (size, *want.per_transition)
+        if not isinstance(value, torch.Tensor):
+            raise CheckpointError(f"{path}: learner.replay/{name} is not a tensor")
+        if tuple(value.shape) != want_shape or value.dtype != want.dtype:
+            raise CheckpointError(
+                f"{path}: learner.replay/{name} is {value.dtype}{tuple(value.shape)}, "
+                f"expected {want.dtype}{want_shape}"
+            )
+    transitions = {layout[n].key: v for n, v in data.items() if n not in written_by_buffer}
+    buffer.extend(TensorDict(transitions, batch_size=[size]))
+    buffer._writer.load_state_dict(writer)

@@ -31,25 +31,18 @@ from __future__ import annotations
 from pathlib import Path
 
 import torch
-from tensordict import TensorDict, TensorDictBase
+from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule
 from torchrl.data import Bounded, LazyTensorStorage, OfflineToOnlineReplayBuffer, ReplayBuffer
 from torchrl.objectives import TD3Loss
 
 from pilerl.policies import actor_policy
-from pilerl.policies.checkpoint_file import CheckpointError
 
 from .calibration import MC_RETURN, MC_RETURN_KNOWN, calibrate, monte_carlo_returns
 from .config import RLPDConfig
 from .critics import make_q_network
-from .off_policy import TD3Parts
+from .off_policy import TD3Parts, layout_of, replay_state, restore_replay
 from .residual import make_residual_actor
-
-END_FLAGS = ("done", "terminated", "truncated")
-
-
-def _leaf_name(key: str | tuple[str, ...]) -> str:
-    return "/".join((key,) if isinstance(key, str) else key)
 
 
 class RLPDLearner:
@@ -111,6 +104,8 @@ class RLPDLearner:
         if torch.isnan(demos["next", "reward"]).any():
             raise ValueError("demos: some rewards are NaN (imported logs): RLPD needs rewards")
         demo_data = self._as_stored(demos, demo_returns=self._demo_returns(demos))
+        # online transitions go through _as_stored too: the demos' leaves are the layout
+        self.stored_layout = layout_of(demo_data)
         offline = ReplayBuffer(storage=LazyTensorStorage(demo_data.numel()))
         offline.extend(demo_data)
         self.replay = OfflineToOnlineReplayBuffer(
@@ -199,47 +194,19 @@ class RLPDLearner:
     def state_dict(self) -> dict[str, object]:
         """What ``last.ckpt`` stores: networks and targets, optimisers, the update count
         and the online replay's transitions with its writer position."""
-        online = self.replay.online_buffer
-        size = len(online)
-        data = {}
-        if size:
-            data = {
-                _leaf_name(key): value.contiguous()
-                for key, value in online.storage[:size].items(True, True)
-            }
         return {
             **self.parts.state_dict(updates=self.updates),
-            "replay": {"size": size, "data": data, "writer": dict(online._writer.state_dict())},
+            "replay": replay_state(self.replay.online_buffer),
         }
 
     def load_state_dict(self, state: dict, *, path: Path) -> None:
         """Restore ``state_dict()`` read from ``path``; what does not fit is refused."""
         updates = self.parts.load_state_dict(state, path=path)
-        self._load_replay(path, state.get("replay"))
+        restore_replay(
+            self.replay.online_buffer,
+            state.get("replay"),
+            path=path,
+            capacity=self.settings.buffer_size,
+            layout=self.stored_layout,
+        )
         self.updates = updates
-
-    def _load_replay(self, path: Path, state: object) -> None:
-        if not isinstance(state, dict) or not isinstance(state.get("data"), dict):
-            raise CheckpointError(f"{path}: learner.replay is not a replay buffer state")
-        size, data, writer = state.get("size"), state["data"], state.get("writer")
-        capacity = self.settings.buffer_size
-        if not isinstance(size, int) or not 0 <= size <= capacity:
-            raise CheckpointError(
-                f"{path}: learner.replay holds {size!r} transitions (buffer size {capacity})"
-            )
-        cursor = writer.get("_cursor") if isinstance(writer, dict) else None
-        if not isinstance(cursor, int) or not 0 <= cursor < capacity:
-            raise CheckpointError(f"{path}: learner.replay has no valid writer position")
-        if size == 0:
-            return
-        expected = {_leaf_name(key): key for key in self.stored_keys}
-        if set(data) != set(expected):
-            raise CheckpointError(
-                f"{path}: learner.replay holds {sorted(data)}, expected {sorted(expected)}"
-            )
-        for name, value in data.items():
-            if not isinstance(value, torch.Tensor) or value.shape[:1] != (size,):
-                raise CheckpointError(f"{path}: learner.replay/{name} is not [{size}, ...]")
-        online = self.replay.online_buffer
-        online.extend(TensorDict({expected[n]: v for n, v in data.items()}, batch_size=[size]))
-        online._writer.load_state_dict(writer)

@@ -18,20 +18,19 @@ from __future__ import annotations
 from pathlib import Path
 
 import torch
-from tensordict import TensorDict, TensorDictBase, cat
+from tensordict import TensorDictBase, cat
 from tensordict.nn import TensorDictModule
 from torchrl.data import Bounded, LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.objectives import TD3BCLoss
 
 from pilerl.data import make_replay_buffer
+from pilerl.data.schema import END_FLAGS
 from pilerl.policies import actor_policy
-from pilerl.policies.checkpoint_file import CheckpointError
 
 from .config import TD3BCConfig
 from .critics import make_q_network
-from .off_policy import TD3Parts
+from .off_policy import LeafLayout, TD3Parts, leaf_name, replay_state, restore_replay
 
-END_FLAGS = ("done", "terminated", "truncated")
 REPLAY_INDEX_KEY = "index"  # TensorDictReplayBuffer stores each transition's index
 
 
@@ -103,79 +102,36 @@ class TD3BCLearner:
     def state_dict(self) -> dict[str, object]:
         """What ``last.ckpt`` stores: networks and targets, optimisers, the update count
         (the actor's delay phase) and the online replay buffer's transitions."""
-        return {**self.parts.state_dict(updates=self.updates), "replay": self._replay_state()}
+        return {
+            **self.parts.state_dict(updates=self.updates),
+            "replay": replay_state(self.replay),
+        }
 
     def load_state_dict(self, state: dict, *, path: Path) -> None:
         """Restore ``state_dict()`` read from ``path``; what does not fit is refused."""
         updates = self.parts.load_state_dict(state, path=path)
-        self._load_replay(path, state.get("replay"))
+        restore_replay(
+            self.replay,
+            state.get("replay"),
+            path=path,
+            capacity=self.settings.buffer_size,
+            layout=self._replay_layout(),
+            written_by_buffer=(REPLAY_INDEX_KEY,),
+        )
         self.updates = updates
 
-    def _replay_state(self) -> dict[str, object]:
-        """The stored transitions (storage order) and the writer's position, as tensors."""
-        size = len(self.replay)
-        data = {}
-        if size:
-            stored = self.replay.storage[:size]
-            data = {
-                "/".join((key,) if isinstance(key, str) else key): value.contiguous()
-                for key, value in stored.items(include_nested=True, leaves_only=True)
-            }
-        return {"size": size, "data": data, "writer": dict(self.replay._writer.state_dict())}
-
-    def _load_replay(self, path: Path, state: object) -> None:
-        """Refill the (empty) online buffer exactly as saved, after checking every leaf."""
-        if not isinstance(state, dict) or not isinstance(state.get("data"), dict):
-            raise CheckpointError(f"{path}: learner.replay is not a replay buffer state")
-        size, data, writer = state.get("size"), state["data"], state.get("writer")
-        capacity = self.settings.buffer_size
-        if not isinstance(size, int) or not 0 <= size <= capacity:
-            raise CheckpointError(
-                f"{path}: learner.replay holds {size!r} transitions (buffer size {capacity})"
-            )
-        if (
-            not isinstance(writer, dict)
-            or not all(
-                isinstance(writer.get(k), int) and writer[k] >= 0
-                for k in ("_cursor", "_write_count")
-            )
-            or writer["_cursor"] >= capacity
-        ):
-            raise CheckpointError(f"{path}: learner.replay has no valid writer position")
-        if size == 0:
-            return
-        expected = {self._leaf_name(key): key for key in self.keys}
-        expected[REPLAY_INDEX_KEY] = REPLAY_INDEX_KEY
-        if set(data) != set(expected):
-            raise CheckpointError(
-                f"{path}: learner.replay holds {sorted(data)}, expected {sorted(expected)}"
-            )
-        for name, value in data.items():
-            want_shape, want_dtype = self._leaf_layout(name, size)
-            if value.shape != want_shape or value.dtype != want_dtype:
-                raise CheckpointError(
-                    f"{path}: learner.replay/{name} is {value.dtype}{tuple(value.shape)}, "
-                    f"expected {want_dtype}{tuple(want_shape)}"
-                )
-        transitions = TensorDict(
-            {expected[n]: v for n, v in data.items() if n != REPLAY_INDEX_KEY}, batch_size=[size]
-        )
-        self.replay.extend(transitions)
-        self.replay._writer.load_state_dict(writer)
-
-    @staticmethod
-    def _leaf_name(key: str | tuple[str, ...]) -> str:
-        return "/".join((key,) if isinstance(key, str) else key)
-
-    def _leaf_layout(self, name: str, size: int) -> tuple[torch.Size, torch.dtype]:
-        """Shape and dtype of a stored leaf: sensors, reward and flags [N, 1], action
-        [N, n_u], the buffer's own index [N]."""
-        if name == REPLAY_INDEX_KEY:
-            return torch.Size([size]), torch.int64
-        if name.split("/")[-1] in END_FLAGS:
-            return torch.Size([size, 1]), torch.bool
-        width = self.policy.config.n_controls if name == "action" else 1
-        return torch.Size([size, width]), torch.float32
+    def _replay_layout(self) -> dict[str, LeafLayout]:
+        """What the online buffer stores: sensors, reward and flags [N, 1], the action
+        [N, n_u] and the buffer's own index [N]."""
+        layout = {REPLAY_INDEX_KEY: LeafLayout(REPLAY_INDEX_KEY, (), torch.int64)}
+        for key in self.keys:
+            last = key if isinstance(key, str) else key[-1]
+            if last in END_FLAGS:
+                layout[leaf_name(key)] = LeafLayout(key, (1,), torch.bool)
+            else:
+                width = self.policy.config.n_controls if key == "action" else 1
+                layout[leaf_name(key)] = LeafLayout(key, (width,), torch.float32)
+        return layout
 
     def sample(self) -> TensorDictBase:
         """One training batch: online transitions and demonstrations."""

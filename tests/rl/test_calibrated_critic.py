@@ -59,6 +59,8 @@ def test_monte_carlo_returns_refuse_a_bad_discount_and_nan_rewards():
         monte_carlo_returns(demos, gamma=0.0)
     demos["next", "reward"][0] = float("nan")
     with pytest.raises(ValueError, match="NaN"):
+        monte_carlo_returns(demos, gamma=0.5)
+    with pytest.raises(ValueError, match="NaN"):
         monte_carlo_returns(demos, gamma=0.9)
 
 
