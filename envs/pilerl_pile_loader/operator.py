@@ -36,6 +36,14 @@ perturbation is added to the *executed* boom and bucket commands while the opera
 clean command stays the label (``last_label``), so demonstrations show how the operator
 corrects drifts it never makes itself.
 
+**Decision rate.** A person corrects a joystick a few times a second, not 500 times: the
+operator decides at most every ``DECISION_PERIOD_S`` (0.05 s, 20 Hz, the env's default
+control rate) and holds its command in between, as a hand holds a lever. At a faster
+control rate (the paper's 500 Hz recordings) it reads the sensors and decides on every
+k-th step (k = the largest whole number of steps within 0.05 s) and its felt levels,
+windows and timers run on that decision clock, so a 500 Hz recording is the same operator
+as a 20 Hz one, sampled finer. At 20 Hz and slower it decides on every step.
+
 Controls are ``[boom, bucket, throttle]`` in [-1, 1] (see ``env``); sensor readings in rad
 and MPa (``sensors.SENSORS``). This module depends on numpy only.
 """
@@ -71,6 +79,7 @@ LEVEL_FALL_S = 0.2  # ... and a falling one (quickly, but not every noise dip) [
 DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)
 STALL_WINDOW_S = 0.3  # the boom is felt to stall when, lifting this long, ...
 STALL_RISE_RAD = 0.01  # ... it has risen less than this [rad]
+DECISION_PERIOD_S = 0.05  # the operator decides at most this often; holds its command between [s]
 
 
 @dataclass(frozen=True)
@@ -280,10 +289,17 @@ class PileLoadingOperator:
 
     Args:
         style: how this operator drives.
-        dt: control period [s].
+        dt: control period [s]; the operator decides every ``steps_per_decision`` steps
+            (``dt`` itself up to 20 Hz, see the module's "Decision rate").
         executed_noise: std of the DART perturbation of the executed boom and bucket
             commands (0 = off); ``last_label`` stays the clean command.
         noise_seed: seed of the perturbation (the same sequence after every ``reset``).
+
+    Attributes:
+        control_dt: the control period [s].
+        steps_per_decision: control steps per decision (1 at 20 Hz and slower).
+        dt: the decision period [s] (``control_dt * steps_per_decision``), the clock of the
+            operator's felt levels, windows and timers.
     """
 
     PHASES = PHASES
@@ -299,7 +315,9 @@ class PileLoadingOperator:
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"PileLoadingOperator.dt: must be > 0 s, got {dt}")
         self.style = style or OperatorStyle()
-        self.dt = dt
+        self.control_dt = dt
+        self.steps_per_decision = max(1, math.floor(DECISION_PERIOD_S / dt + 1e-9))
+        self.dt = dt * self.steps_per_decision
         self.executed_noise = executed_noise
         self.noise_seed = noise_seed
         self.reset()
@@ -312,6 +330,7 @@ class PileLoadingOperator:
     def reset(self) -> None:
         self.phase = "approach"
         self.last_label = np.zeros(3, dtype=np.float32)
+        self._steps_to_decision = 0  # control steps until the next decision
         self._rest_boom: float | None = None  # boom angle at rest, felt at the start [rad]
         self._rest_pitch = 0.0  # boom + bucket angle with the floor level [rad]
         self._noise = np.zeros(3)
@@ -327,8 +346,9 @@ class PileLoadingOperator:
         self._action = "lift"  # in filling: lift or curl
         self._pushing = False  # in filling: still crowding the pile with the throttle
         self._curl_from = 0.0  # bucket-floor pitch when the curl began [rad]
-        self._boom_trace: deque[float] = deque(maxlen=64)  # boom angles while lifting
-        self._drive_trace: deque[float] = deque(maxlen=64)  # drive pressures backing off
+        # what the operator remembers, as long as its windows (in control steps at this dt)
+        self._boom_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))  # lifting
+        self._drive_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))  # backing off
         self._push_peak = 0.0
         self._eased = False
         self._light = False  # finishing: the scoop came up light, go again after backing off
@@ -340,7 +360,11 @@ class PileLoadingOperator:
     # ------------------------------------------------------------------ acting
     def act(self, sensors: Mapping[str, object]) -> np.ndarray:
         """The executed command [boom, bucket, throttle] for these readings; the clean
-        command is kept in ``last_label``."""
+        command is kept in ``last_label``. Between decisions the last one is held."""
+        if self._steps_to_decision > 0:
+            self._steps_to_decision -= 1
+            return self._executed(self.last_label)
+        self._steps_to_decision = self.steps_per_decision - 1
         reading = {k: float(np.asarray(v).reshape(-1)[0]) for k, v in sensors.items()}
         if self._rest_boom is None:
             self._rest_boom = reading["boom_angle"]
@@ -458,7 +482,7 @@ class PileLoadingOperator:
     def _boom_stalled(self) -> bool:
         """The boom is felt to stall: lifting for ``STALL_WINDOW_S`` and it has not risen
         by ``STALL_RISE_RAD``."""
-        window = max(2, round(STALL_WINDOW_S / self.dt) + 1)
+        window = self._steps(STALL_WINDOW_S)
         trace = self._boom_trace
         if len(trace) < window:
             return False
@@ -493,17 +517,21 @@ class PileLoadingOperator:
         self._set_off = self._set_off or reading["pump_angle"] < 0.0
         if self._set_off:
             self._drive_trace.append(reading["drive_pressure"])
-            window = max(2, round(BACK_STEADY_S / self.dt) + 1)
+            window = self._steps(BACK_STEADY_S)
             recent = list(self._drive_trace)[-window:]
             steady = len(recent) >= window and max(recent) - min(recent) <= BACK_STEADY_MPA
             self._backed_off = steady
         return not self._backed_off
 
+    def _steps(self, window_s: float) -> int:
+        """Control steps that span ``window_s`` (both ends included), at least 2."""
+        return max(2, round(window_s / self.dt) + 1)
+
     def _executed(self, label: np.ndarray) -> np.ndarray:
         """The command the machine gets: the label, plus the DART perturbation if on."""
         if self.executed_noise <= 0:
             return label.copy()
-        decay = math.exp(-self.dt / NOISE_CORRELATION_S)
+        decay = math.exp(-self.control_dt / NOISE_CORRELATION_S)
         shock = self._noise_rng.normal(0.0, 1.0, size=3)
         self._noise = decay * self._noise + math.sqrt(1 - decay * decay) * shock
         executed = label.astype(np.float64)

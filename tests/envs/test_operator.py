@@ -67,6 +67,48 @@ def test_a_stalled_boom_makes_it_curl():
     assert commands[-1][1] > 0  # the boom's relief valve opens: curl at once
 
 
+def seconds_until_it_curls(dt: float) -> float:
+    """Time from the impact until the operator curls a boom that does not rise [s]."""
+    operator = make_expert(dt=dt)
+    operator.act(REST)
+    impact = {**REST, "drive_pressure": 25.0, "boom_pressure": 15.0}
+    for step in range(round(5.0 / dt)):
+        if operator.act(impact)[1] > 0:
+            return step * dt
+    raise AssertionError(f"dt={dt}: never curled")
+
+
+def test_it_feels_a_stall_after_the_same_time_at_any_control_rate():
+    """The operator's windows are in seconds, not steps: at 500 Hz (the paper's recording
+    rate) the stall is felt when it is at 20 Hz (it once never was: a 64-sample memory)."""
+    at_20_hz, at_500_hz = seconds_until_it_curls(0.05), seconds_until_it_curls(0.002)
+    assert 0.3 <= at_20_hz <= 1.0
+    assert abs(at_500_hz - at_20_hz) <= 0.05  # within one decision period
+
+
+def test_above_20_hz_it_decides_at_20_hz_and_holds_its_command_between():
+    operator = make_expert(dt=0.002)
+    assert operator.steps_per_decision == 25 and operator.dt == pytest.approx(0.05)
+    assert make_expert(dt=DT).steps_per_decision == 1  # at 20 Hz it decides every step
+    assert make_expert(dt=1 / 3).steps_per_decision == 1
+    assert make_expert(dt=1 / 30).steps_per_decision == 1  # never slower than 20 Hz
+    commands = [
+        operator.act({**REST, "boom_angle": REST["boom_angle"] + 0.01 * k}) for k in range(50)
+    ]
+    assert all(np.array_equal(commands[k], commands[0]) for k in range(25))  # held...
+    assert not np.array_equal(commands[25], commands[0])  # ...until the next decision
+
+
+def test_at_500_hz_the_nominal_expert_finishes_its_summer_scoop():
+    """The paper recorded at 500 Hz (``recipes/record.py``'s default rate): the expert must
+    fill and finish there as it does at 20 Hz, not run to the time limit."""
+    run = run_episode(make_expert(dt=0.002), seed=3, hz=500.0)
+    assert run["info"]["success"] and run["info"]["fill_fraction"] >= 0.5
+    assert len(run["labels"]) < 20 * 500  # finished well before the 30 s limit
+    labels = run["labels"][: len(run["labels"]) // 25 * 25].reshape(-1, 25, 3)
+    assert (labels == labels[:, :1]).all()  # one command per 0.05 s decision
+
+
 def test_nominal_expert_is_deterministic_and_fills_a_summer_scoop():
     runs = [run_episode(make_expert(dt=DT), seed=3) for _ in range(2)]
     assert np.array_equal(runs[0]["labels"], runs[1]["labels"])
