@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .base import BucketGeometry, PileGeometry, SoilModel
+from .base import BucketGeometry, PileGeometry, SoilModel, update_together
 from .heightfield import HeightfieldSoil
 from .particles import ParticleSoil
 
@@ -22,4 +22,11 @@ def get_soil_model(name: str) -> type[SoilModel]:
         ) from None
 
 
-__all__ = ["SOIL_MODELS", "BucketGeometry", "PileGeometry", "SoilModel", "get_soil_model"]
+__all__ = [
+    "SOIL_MODELS",
+    "BucketGeometry",
+    "PileGeometry",
+    "SoilModel",
+    "get_soil_model",
+    "update_together",
+]

@@ -1,0 +1,206 @@
+"""The heightfield soil's update for many simulators at once: one vectorised NumPy pass.
+
+``HeightfieldSoil.update_many`` hands the soils of the default options (footprint intake,
+no mouth tally, edge resistance) here; each soil belongs to its own simulator (its own
+pile, bucket pose and material). What ``HeightfieldSoil.update`` computes for one soil
+in a few dozen small NumPy calls, this pass computes for all of them in one set of calls
+on stacked arrays: the bucket polygons in the world, the footprints' grid windows (padded
+to the largest window), the candidate cells and their intersection with the polygons'
+edges, and the cutting edges' depth samples.
+
+Each soil's numbers are exactly those of its own ``update``, bit for bit:
+
+- elementwise arithmetic runs in the same order of operations (NumPy rounds every
+  float64 element on its own, so stacking changes no element's value);
+- the small matrix products are stacked per simulator, and NumPy hands a stack to BLAS
+  one matrix at a time with the strides the matrix has alone;
+- minima and maxima are exact, whatever order they are taken in;
+- every sum over a soil's cells is taken per soil, on an array of the shape it has alone
+  (NumPy's pairwise summation groups terms by position), and the depth samples are added
+  one after another, as ``update`` adds them;
+- the scalar formulas (spill, FEE force, breakout) and the writes into each MuJoCo model
+  run per soil, through the soil's own methods.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .heightfield import HeightfieldSoil
+
+# ``HeightfieldSoil.layout_row`` columns: per-soil constants of the grid and material
+X0, Y0, DX, DY, NCOL, NROW, HALF_WIDTH, DENSITY, CELL_AREA = range(9)
+LIVE_SPAN_M = 1e-9  # an edge shorter than this along the heading is seen end-on: no cell
+
+
+def update_heightfields(
+    soils: Sequence[HeightfieldSoil], dts: Sequence[float], *, margin_m: float
+) -> None:
+    """``soil.update(dt)`` for each of ``soils`` (default options, bucket polygons with the
+    same number of corners), computed together. ``margin_m``: the candidate margin along
+    the heading (``CANDIDATE_MARGIN_M``)."""
+    n = len(soils)
+    rotation = np.empty((n, 9))
+    hinge = np.empty((n, 3))
+    heading = np.empty((n, 2))
+    hold_m3 = np.empty(n)
+    for k, soil in enumerate(soils):
+        machine = soil.machine
+        body = machine.bucket_body
+        heading[k] = machine.heading()
+        rotation[k] = soil._xmat[body]
+        hinge[k] = soil._xpos[body]
+        hold_m3[k] = np.interp(machine.bucket_pitch(), soil._pitch_table, soil._holding_table)
+    layout = np.array([soil.layout_row for soil in soils])
+    polygon = np.array([soil._polygon_local for soil in soils])  # (n, V, 3), bucket frame
+
+    # the bucket's inside in the vertical plane through the hinge: (s along heading, z)
+    world = hinge[:, None, :] + polygon @ rotation.reshape(n, 3, 3).transpose(0, 2, 1)
+    s_poly = ((world[:, :, :2] - hinge[:, None, :2]) @ heading[:, :, None])[:, :, 0]
+    z_poly = world[:, :, 2]
+
+    load_m3 = np.array([soil.bucket_load_kg for soil in soils]) / layout[:, DENSITY]
+    _intake(soils, layout, hinge, heading, s_poly, z_poly, hold_m3 - load_m3, margin_m)
+
+    depth_m = _edge_depths(soils, layout, world[:, 1, :], heading)
+    for k, soil in enumerate(soils):
+        soil._spill(float(hold_m3[k]), dts[k])
+        soil._depth_m = soil.resistance_depth_m = float(depth_m[k])
+        force = soil._resistance_n(soil._depth_m)
+        soil._write_resistance(force, heading[k], soil.breakout_force_n(soil._depth_m))
+        soil._write_payload()
+
+
+def _intake(
+    soils: Sequence[HeightfieldSoil],
+    layout: np.ndarray,
+    hinge: np.ndarray,
+    heading: np.ndarray,
+    s_poly: np.ndarray,
+    z_poly: np.ndarray,
+    room_m3: np.ndarray,
+    margin_m: float,
+) -> None:
+    """``HeightfieldSoil._intake`` of every soil: the material under each bucket's inside
+    moves into the bucket, up to the room it has (``room_m3`` [m^3])."""
+    hx, hy = heading[:, 0], heading[:, 1]
+    lx, ly = -hy, hx  # lateral: the heading turned 90 deg to the left
+    h0, h1 = hinge[:, 0], hinge[:, 1]
+    half_width = layout[:, HALF_WIDTH]
+    s_min, s_max = s_poly.min(axis=1), s_poly.max(axis=1)
+    # footprint: the polygon's extent along the heading, the bucket width across it
+    corners_x, corners_y = [], []
+    for s_corner in (s_min, s_max):
+        for side in (-1.0, 1.0):
+            across = side * half_width
+            corners_x.append(h0 + s_corner * hx + across * lx)
+            corners_y.append(h1 + s_corner * hy + across * ly)
+    x0, y0, dx, dy = layout[:, X0], layout[:, Y0], layout[:, DX], layout[:, DY]
+    c0 = np.floor((_least(corners_x) - x0) / dx).astype(np.int64)
+    c1 = np.ceil((_most(corners_x) - x0) / dx).astype(np.int64) + 1
+    r0 = np.floor((_least(corners_y) - y0) / dy).astype(np.int64)
+    r1 = np.ceil((_most(corners_y) - y0) / dy).astype(np.int64) + 1
+    c0, r0 = np.maximum(c0, 0), np.maximum(r0, 0)
+    c1 = np.minimum(c1, layout[:, NCOL].astype(np.int64))
+    r1 = np.minimum(r1, layout[:, NROW].astype(np.int64))
+    taking = np.flatnonzero((room_m3 > 0.0) & (c0 < c1) & (r0 < r1))
+    if taking.size == 0:
+        return
+    n_rows, n_cols = (r1 - r0)[taking], (c1 - c0)[taking]
+    windows = np.full((taking.size, int(n_rows.max()), int(n_cols.max())), -np.inf)
+    for j, k in enumerate(taking.tolist()):
+        windows[j, : n_rows[j], : n_cols[j]] = soils[k].heights[r0[k] : r1[k], c0[k] : c1[k]]
+    # a bucket above the pile's highest cell of its window takes nothing
+    reach = windows.max(axis=(1, 2)) > z_poly[taking].min(axis=1)
+    taking, windows, n_rows, n_cols = taking[reach], windows[reach], n_rows[reach], n_cols[reach]
+    if taking.size == 0:
+        return
+
+    t = taking[:, None]
+    row_index, col_index = np.arange(windows.shape[1]), np.arange(windows.shape[2])
+    rel_x = (x0[t] + dx[t] * (c0[t] + col_index)) - h0[t]  # (m, cols): the cells' centres
+    rel_y = (y0[t] + dy[t] * (r0[t] + row_index)) - h1[t]  # (m, rows)
+    rel_x, rel_y = rel_x[:, None, :], rel_y[:, :, None]
+    t3 = taking[:, None, None]
+    s = rel_x * hx[t3] + rel_y * hy[t3]  # (m, rows, cols): along the heading
+    candidate = np.abs(rel_x * lx[t3] + rel_y * ly[t3]) <= half_width[t3]
+    # only cells within the polygon's extent along the heading can lie on one of its edges
+    candidate &= s >= (s_min[taking] - margin_m)[:, None, None]
+    candidate &= s <= (s_max[taking] + margin_m)[:, None, None]
+    candidate &= (row_index < n_rows[:, None])[:, :, None]  # the padding holds no cell
+    candidate &= (col_index < n_cols[:, None])[:, None, :]
+    owner, _, _ = np.nonzero(candidate)  # each candidate's soil (index into ``taking``)
+    if owner.size == 0:
+        return
+
+    # vertical extent of each bucket polygon at its candidate cells' s: intersect with
+    # its edges, edge by edge in rows (edges seen end-on along the heading hold no cell)
+    nxt = np.roll(np.arange(s_poly.shape[1]), -1)
+    s_a, z_a = s_poly[taking].T, z_poly[taking].T  # (V, m)
+    span = s_poly[taking][:, nxt].T - s_a
+    rise = z_poly[taking][:, nxt].T - z_a
+    live = np.abs(span) >= LIVE_SPAN_M
+    span = np.where(live, span, 1.0)
+    t_edge = (s[candidate] - s_a[:, owner]) / span[:, owner]  # (V, candidates)
+    on_edge = (t_edge >= 0.0) & (t_edge <= 1.0) & live[:, owner]
+    z_at = z_a[:, owner] + t_edge * rise[:, owner]
+    z_floor = np.where(on_edge, z_at, np.inf).min(axis=0)
+    z_roof = np.where(on_edge, z_at, -np.inf).max(axis=0)
+    inside = np.isfinite(z_floor)
+    column = np.minimum(windows[candidate], z_roof) - z_floor
+    given = np.where(inside, np.clip(column, 0.0, None), 0.0)
+
+    ends = np.cumsum(np.bincount(owner, minlength=taking.size)).tolist()
+    start = 0
+    for j, k in enumerate(taking.tolist()):
+        end = ends[j]
+        if end == start:
+            continue
+        rows, cols = int(n_rows[j]), int(n_cols[j])
+        taken = np.zeros((rows, cols))
+        taken[candidate[j, :rows, :cols]] = given[start:end]
+        start = end
+        window = slice(r0[k], r1[k]), slice(c0[k], c1[k])
+        soils[k]._take(taken, window, float(room_m3[k]))
+
+
+def _edge_depths(
+    soils: Sequence[HeightfieldSoil], layout: np.ndarray, edge: np.ndarray, heading: np.ndarray
+) -> np.ndarray:
+    """``HeightfieldSoil._edge_depth`` of every soil [m]: the mean depth of its cutting
+    edge (``edge``: world x, y, z of each) below the pile one cell ahead of it."""
+    offsets = np.array([soil._edge_offsets_list for soil in soils])  # (n, samples) [m]
+    hx, hy = heading[:, 0:1], heading[:, 1:2]
+    x0, y0, dx, dy = (layout[:, i : i + 1] for i in (X0, Y0, DX, DY))
+    ahead_x, ahead_y = edge[:, 0:1] + hx * dx, edge[:, 1:2] + hy * dx
+    cols = np.rint((ahead_x - hy * offsets - x0) / dx).astype(np.int64)
+    rows = np.rint((ahead_y + hx * offsets - y0) / dy).astype(np.int64)
+    on_grid = (cols >= 0) & (cols < layout[:, NCOL : NCOL + 1])
+    on_grid &= (rows >= 0) & (rows < layout[:, NROW : NROW + 1])
+    surface = np.zeros(offsets.shape)
+    for k, soil in enumerate(soils):
+        inside = on_grid[k]
+        surface[k, inside] = soil.heights[rows[k, inside], cols[k, inside]]
+    below = np.where(on_grid, np.maximum(surface - edge[:, 2:3], 0.0), 0.0)
+    total = np.zeros(len(soils))
+    for sample in range(offsets.shape[1]):  # one after another, as ``_edge_depth`` adds
+        total = total + below[:, sample]
+    return np.where(on_grid.any(axis=1), total / offsets.shape[1], 0.0)
+
+
+def _least(values: list[np.ndarray]) -> np.ndarray:
+    least = values[0]
+    for value in values[1:]:
+        least = np.minimum(least, value)
+    return least
+
+
+def _most(values: list[np.ndarray]) -> np.ndarray:
+    most = values[0]
+    for value in values[1:]:
+        most = np.maximum(most, value)
+    return most
