@@ -197,6 +197,12 @@ class HeightfieldSoil(SoilModel):
         self._side = model.actuator("soil_side").id
         self._lift = model.actuator("soil_lift").id
         self._payload = model.body("payload").id
+        if (self._side, self._lift) != (self._push + 1, self._push + 2):
+            raise RuntimeError(
+                "HeightfieldSoil.bind: the soil's push, side and lift actuators must be "
+                f"consecutive, got ids {self._push}, {self._side}, {self._lift}"
+            )
+        self._resistance_rows = slice(self._push, self._push + 3)
         xs = self._x0 + self.dx * np.arange(self.ncol)
         ys = self._y0 + self.dy * np.arange(self.nrow)
         self._grid_x, self._grid_y = np.meshgrid(xs, ys)  # (nrow, ncol)
@@ -471,11 +477,13 @@ class HeightfieldSoil(SoilModel):
         if not candidate.any() or not live.any():
             return
         s_a, z_a, rise, span = s_poly[live], z_poly[live], (z_b - z_poly)[live], span[live]
-        t = (s[candidate][:, None] - s_a) / span
+        # one row per edge, one column per cell: NumPy reduces across rows in one pass over
+        # the cells, but along a short last axis row by row (~6x slower here, measured)
+        t = (s[candidate] - s_a[:, None]) / span[:, None]
         on_edge = (t >= 0.0) & (t <= 1.0)
-        z_at = z_a + t * rise
-        z_floor = np.where(on_edge, z_at, np.inf).min(axis=-1)
-        z_roof = np.where(on_edge, z_at, -np.inf).max(axis=-1)
+        z_at = z_a[:, None] + t * rise[:, None]
+        z_floor = np.where(on_edge, z_at, np.inf).min(axis=0)
+        z_roof = np.where(on_edge, z_at, -np.inf).max(axis=0)
         inside = np.isfinite(z_floor)
         column = np.minimum(heights[candidate], z_roof) - z_floor
         taken = np.zeros(heights.shape)
@@ -650,6 +658,37 @@ class HeightfieldSoil(SoilModel):
         biasprm[self._side, 2] = -side / YIELD_SPEED_M_S
         forcerange[self._lift] = (-breakout_n, breakout_n)
         biasprm[self._lift, 2] = -breakout_n / YIELD_SPEED_M_S
+
+    @staticmethod
+    def _write_resistances(
+        soils: Sequence[HeightfieldSoil],
+        rotation: np.ndarray,
+        heading: np.ndarray,
+        force_n: np.ndarray,
+        breakout_n: np.ndarray,
+    ) -> None:
+        """``_write_resistance(force_n[k], heading[k], breakout_n[k])`` of each soil (no
+        lift ratio: the default options), the directions of all computed together:
+        ``rotation`` [n, 3, 3] of each bucket (its ``xmat``), ``heading`` [n, 2]. Each
+        soil's three dampers are consecutive actuators (``bind``): one write per array."""
+        to_bucket = rotation.transpose(0, 2, 1)  # each matrix with the strides of ``.T``
+        zeros = np.zeros(len(soils))
+        hx, hy = heading[:, 0], heading[:, 1]
+        push = to_bucket @ np.stack([hx, hy, zeros], axis=1)[:, :, None]
+        side = to_bucket @ np.stack([-hy, hx, zeros], axis=1)[:, :, None]
+        lift = to_bucket @ UP
+        gear = np.concatenate([push, side, lift[:, :, None]], axis=2).transpose(0, 2, 1)
+        side_n = SIDE_RATIO * force_n
+        ranges = np.stack([-force_n, zeros, -side_n, side_n, -breakout_n, breakout_n], axis=1)
+        bias = np.stack(
+            [-force_n / YIELD_SPEED_M_S, -side_n / YIELD_SPEED_M_S, -breakout_n / YIELD_SPEED_M_S],
+            axis=1,
+        )
+        for k, soil in enumerate(soils):
+            rows = soil._resistance_rows
+            soil._gear[rows, :3] = gear[k]
+            soil._forcerange[rows] = ranges[k].reshape(3, 2)
+            soil._biasprm[rows, 2] = bias[k]
 
     def _write_payload(self) -> None:
         mass = max(self.bucket_load_kg, 1e-6)
