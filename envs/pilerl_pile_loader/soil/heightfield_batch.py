@@ -35,6 +35,7 @@ if TYPE_CHECKING:
 # ``HeightfieldSoil.layout_row`` columns: per-soil constants of the grid and material
 X0, Y0, DX, DY, NCOL, NROW, HALF_WIDTH, DENSITY, CELL_AREA = range(9)
 LIVE_SPAN_M = 1e-9  # an edge shorter than this along the heading is seen end-on: no cell
+SIDES = np.array([-1.0, 1.0])  # left and right of the bucket's centre line
 
 
 def update_heightfields(
@@ -102,52 +103,50 @@ def _intake(
 ) -> None:
     """``HeightfieldSoil._intake`` of every soil: the material under each bucket's inside
     moves into the bucket, up to the room it has (``room_m3`` [m^3])."""
-    hx, hy = heading[:, 0], heading[:, 1]
+    hx, hy = heading[:, 0:1], heading[:, 1:2]
     lx, ly = -hy, hx  # lateral: the heading turned 90 deg to the left
-    h0, h1 = hinge[:, 0], hinge[:, 1]
-    half_width = layout[:, HALF_WIDTH]
-    s_min, s_max = s_poly.min(axis=1), s_poly.max(axis=1)
-    # footprint: the polygon's extent along the heading, the bucket width across it
-    corners_x, corners_y = [], []
-    for s_corner in (s_min, s_max):
-        for side in (-1.0, 1.0):
-            across = side * half_width
-            corners_x.append(h0 + s_corner * hx + across * lx)
-            corners_y.append(h1 + s_corner * hy + across * ly)
-    x0, y0, dx, dy = layout[:, X0], layout[:, Y0], layout[:, DX], layout[:, DY]
-    c0 = np.floor((_least(corners_x) - x0) / dx).astype(np.int64)
-    c1 = np.ceil((_most(corners_x) - x0) / dx).astype(np.int64) + 1
-    r0 = np.floor((_least(corners_y) - y0) / dy).astype(np.int64)
-    r1 = np.ceil((_most(corners_y) - y0) / dy).astype(np.int64) + 1
-    c0, r0 = np.maximum(c0, 0), np.maximum(r0, 0)
-    c1 = np.minimum(c1, layout[:, NCOL].astype(np.int64))
-    r1 = np.minimum(r1, layout[:, NROW].astype(np.int64))
-    taking = np.flatnonzero((room_m3 > 0.0) & (c0 < c1) & (r0 < r1))
+    # footprint corners [soil, s_min | s_max, left | right]: the polygon's extent along the
+    # heading, the bucket width across it
+    extent = np.stack([s_poly.min(axis=1), s_poly.max(axis=1)], axis=1)
+    across = SIDES * layout[:, HALF_WIDTH : HALF_WIDTH + 1]
+    corner_x = hinge[:, 0:1, None] + (extent * hx)[:, :, None] + (across * lx)[:, None, :]
+    corner_y = hinge[:, 1:2, None] + (extent * hy)[:, :, None] + (across * ly)[:, None, :]
+    n = len(soils)
+    low = np.stack([corner_x.reshape(n, 4).min(axis=1), corner_y.reshape(n, 4).min(axis=1)], 1)
+    high = np.stack([corner_x.reshape(n, 4).max(axis=1), corner_y.reshape(n, 4).max(axis=1)], 1)
+    origin, cell = layout[:, [X0, Y0]], layout[:, [DX, DY]]
+    first = np.maximum(np.floor((low - origin) / cell).astype(np.int64), 0)  # col, row
+    last = np.ceil((high - origin) / cell).astype(np.int64) + 1
+    last = np.minimum(last, layout[:, [NCOL, NROW]].astype(np.int64))
+    taking = np.flatnonzero((room_m3 > 0.0) & (first < last).all(axis=1))
     if taking.size == 0:
         return
-    n_rows, n_cols = (r1 - r0)[taking], (c1 - c0)[taking]
-    windows = np.full((taking.size, int(n_rows.max()), int(n_cols.max())), -np.inf)
+    size = last[taking] - first[taking]  # (m, 2): the windows' columns and rows
+    windows = np.full((taking.size, int(size[:, 1].max()), int(size[:, 0].max())), -np.inf)
     for j, k in enumerate(taking.tolist()):
-        windows[j, : n_rows[j], : n_cols[j]] = soils[k].heights[r0[k] : r1[k], c0[k] : c1[k]]
+        (c0, r0), (c1, r1) = first[k].tolist(), last[k].tolist()
+        windows[j, : r1 - r0, : c1 - c0] = soils[k].heights[r0:r1, c0:c1]
     # a bucket above the pile's highest cell of its window takes nothing
     reach = windows.max(axis=(1, 2)) > z_poly[taking].min(axis=1)
-    taking, windows, n_rows, n_cols = taking[reach], windows[reach], n_rows[reach], n_cols[reach]
+    taking, windows, size = taking[reach], windows[reach], size[reach]
     if taking.size == 0:
         return
 
-    t = taking[:, None]
+    sub, start = layout[taking], first[taking]
     row_index, col_index = np.arange(windows.shape[1]), np.arange(windows.shape[2])
-    rel_x = (x0[t] + dx[t] * (c0[t] + col_index)) - h0[t]  # (m, cols): the cells' centres
-    rel_y = (y0[t] + dy[t] * (r0[t] + row_index)) - h1[t]  # (m, rows)
+    # the cells' centres relative to the hinge, as ``HeightfieldSoil`` computes them
+    rel_x = sub[:, X0, None] + sub[:, DX, None] * (start[:, 0, None] + col_index)
+    rel_y = sub[:, Y0, None] + sub[:, DY, None] * (start[:, 1, None] + row_index)
+    rel_x, rel_y = rel_x - hinge[taking, 0, None], rel_y - hinge[taking, 1, None]
     rel_x, rel_y = rel_x[:, None, :], rel_y[:, :, None]
-    t3 = taking[:, None, None]
-    s = rel_x * hx[t3] + rel_y * hy[t3]  # (m, rows, cols): along the heading
-    candidate = np.abs(rel_x * lx[t3] + rel_y * ly[t3]) <= half_width[t3]
+    hx, hy, lx, ly = (v[taking, :, None] for v in (hx, hy, lx, ly))
+    s = rel_x * hx + rel_y * hy  # (m, rows, cols): along the heading
+    candidate = np.abs(rel_x * lx + rel_y * ly) <= sub[:, HALF_WIDTH, None, None]
     # only cells within the polygon's extent along the heading can lie on one of its edges
-    candidate &= s >= (s_min[taking] - margin_m)[:, None, None]
-    candidate &= s <= (s_max[taking] + margin_m)[:, None, None]
-    candidate &= (row_index < n_rows[:, None])[:, :, None]  # the padding holds no cell
-    candidate &= (col_index < n_cols[:, None])[:, None, :]
+    candidate &= s >= (extent[taking, 0] - margin_m)[:, None, None]
+    candidate &= s <= (extent[taking, 1] + margin_m)[:, None, None]
+    candidate &= (row_index < size[:, 1:2])[:, :, None]  # the padding holds no cell
+    candidate &= (col_index < size[:, 0:1])[:, None, :]
     owner, _, _ = np.nonzero(candidate)  # each candidate's soil (index into ``taking``)
     if owner.size == 0:
         return
@@ -171,17 +170,16 @@ def _intake(
     given = np.where(inside, np.clip(column, 0.0, None), 0.0)
 
     ends = np.cumsum(np.bincount(owner, minlength=taking.size)).tolist()
-    start = 0
+    begin = 0
     for j, k in enumerate(taking.tolist()):
         end = ends[j]
-        if end == start:
+        if end == begin:
             continue
-        rows, cols = int(n_rows[j]), int(n_cols[j])
-        taken = np.zeros((rows, cols))
-        taken[candidate[j, :rows, :cols]] = given[start:end]
-        start = end
-        window = slice(r0[k], r1[k]), slice(c0[k], c1[k])
-        soils[k]._take(taken, window, float(room_m3[k]))
+        (c0, r0), (c1, r1) = first[k].tolist(), last[k].tolist()
+        taken = np.zeros((r1 - r0, c1 - c0))
+        taken[candidate[j, : r1 - r0, : c1 - c0]] = given[begin:end]
+        begin = end
+        soils[k]._take(taken, (slice(r0, r1), slice(c0, c1)), float(room_m3[k]))
 
 
 def _edge_depths(
@@ -206,17 +204,3 @@ def _edge_depths(
     for sample in range(offsets.shape[1]):  # one after another, as ``_edge_depth`` adds
         total = total + below[:, sample]
     return np.where(on_grid.any(axis=1), total / offsets.shape[1], 0.0)
-
-
-def _least(values: list[np.ndarray]) -> np.ndarray:
-    least = values[0]
-    for value in values[1:]:
-        least = np.minimum(least, value)
-    return least
-
-
-def _most(values: list[np.ndarray]) -> np.ndarray:
-    most = values[0]
-    for value in values[1:]:
-        most = np.maximum(most, value)
-    return most
