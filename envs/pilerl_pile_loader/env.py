@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import inspect
 import math
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import gymnasium as gym
 import mujoco
@@ -52,7 +52,7 @@ from .conditions import Condition, get_condition
 from .latency import ActuationDelay
 from .machine import Machine, MachineParameters, load_machine_spec
 from .sensors import CONTROL_NAMES, SENSORS
-from .soil import BucketGeometry, PileGeometry, get_soil_model, update_together
+from .soil import BucketGeometry, PileGeometry, get_soil_model
 from .task import RewardWeights, ScoopTask, reward_parts
 
 INITIAL_BOOM_ANGLE_RAD = -0.45  # bucket lowered: floor a few cm above the ground
@@ -223,57 +223,17 @@ class PileLoadingEnv(gym.Env):
         return self._observation(), self._info(scoop_finished=False, tipped=False, parts=None)
 
     def step(self, action):
-        u, energy_before = self._begin_step(action)
-        for n_steps, command in self._delay.segments(u):
-            self._run_physics(n_steps, command=command)
-        return self._end_step(energy_before)
-
-    @classmethod
-    def step_many(cls, envs: Sequence[PileLoadingEnv], actions: Sequence[np.ndarray]) -> list:
-        """``[env.step(a) for env, a in zip(envs, actions)]``, bit for bit, with the soil
-        updates of each physics chunk computed together (pilerl's batched env calls this,
-        docs/simulator_plugins.md "Stepping many simulators at once").
-
-        The simulators advance chunk by chunk: each runs its ``mj_step``s up to its next
-        soil update, then the soil models due for an update take it in one call
-        (``soil.update_together``: the heightfield's vectorised pass), and so on until every
-        simulator has finished its control step. A simulator's own sequence of operations
-        is that of its ``step``; the simulators share nothing. Every action is checked
-        before any simulator moves.
-        """
-        if len(envs) != len(actions):
-            raise ValueError(
-                f"PileLoadingEnv.step_many: {len(envs)} simulators but {len(actions)} actions"
-            )
-        begun = [env._begin_step(action) for env, action in zip(envs, actions, strict=True)]
-        runs = [env._physics_of_step(u) for env, (u, _) in zip(envs, begun, strict=True)]
-        running = list(range(len(envs)))
-        while running:  # one round per soil update: every simulator to its next one
-            due, due_dt_s, still = [], [], []
-            for i in running:
-                soil_dt_s = next(runs[i], None)
-                if soil_dt_s is not None:
-                    due.append(envs[i].soil)
-                    due_dt_s.append(soil_dt_s)
-                    still.append(i)
-            if due:
-                update_together(due, due_dt_s)
-            running = still
-        return [env._end_step(energy) for env, (_, energy) in zip(envs, begun, strict=True)]
-
-    def _begin_step(self, action) -> tuple[np.ndarray, float]:
-        """The checked action and the energy tally before the step [J]."""
         if self._episode_over:
             raise RuntimeError(
                 "PileLoadingEnv.step: the episode has ended (terminated or truncated) or was "
                 "never started; call reset() before stepping again"
             )
-        return _validate_action(action), self._energy_j
-
-    def _end_step(self, energy_before_j: float):
-        """After the physics of a step: the step's (observation, reward, terminated,
-        truncated, info)."""
+        u = _validate_action(action)
+        energy_before = self._energy_j
+        for n_steps, command in self._delay.segments(u):
+            self._run_physics(n_steps, command=command)
         self._elapsed_s += self.dt
+
         fill = self.soil.fill_fraction
         rated_kg = self.soil.bucket.rated_volume_m3 * self.condition.material.density_kg_m3
         pitch, hinge_height = self.machine.bucket_pitch(), self._hinge_height()
@@ -287,7 +247,7 @@ class PileLoadingEnv(gym.Env):
             fill_gain=fill - self._last_fill,
             spilled_fraction_gain=(self.soil.spilled_kg - self._last_spilled) / rated_kg,
             seconds=self.dt,
-            work_kj=(self._energy_j - energy_before_j) / 1e3,
+            work_kj=(self._energy_j - energy_before) / 1e3,
             succeeded=succeeded,
         )
         self._last_fill, self._last_spilled = fill, self.soil.spilled_kg
@@ -347,20 +307,6 @@ class PileLoadingEnv(gym.Env):
 
         Without ``command`` the valves and pump keep their state (used to settle at reset).
         """
-        for soil_dt_s in self._physics(n_steps, command=command):
-            self.soil.update(soil_dt_s)
-
-    def _physics_of_step(self, u: np.ndarray) -> Iterator[float]:
-        """A control step's physics with the checked action ``u`` (``_physics`` of each
-        actuation-delay segment); yields where the soil is due for an update."""
-        for n_steps, command in self._delay.segments(u):
-            yield from self._physics(n_steps, command=command)
-
-    def _physics(self, n_steps: int, *, command: np.ndarray | None = None) -> Iterator[float]:
-        """``n_steps`` physics steps in soil-update chunks, with valve/pump lag; after each
-        chunk that makes the soil due, yields the interval [s] it must be updated over, and
-        the caller updates it before resuming (``_run_physics`` alone, ``step_many`` for
-        many simulators together)."""
         m, d, machine = self.model, self.data, self.machine
         timestep = m.opt.timestep
         chunks = self._chunks if n_steps == self.frame_skip else _split(n_steps, self._chunks)
@@ -378,7 +324,7 @@ class PileLoadingEnv(gym.Env):
             mujoco.mj_step(m, d, nstep=steps)
             self._steps_since_soil += steps
             if self._steps_since_soil >= self._soil_period_steps:
-                yield self._steps_since_soil * timestep
+                self.soil.update(self._steps_since_soil * timestep)
                 self._steps_since_soil = 0
             self._energy_j += machine.hydraulic_power_w() * chunk_dt
         machine.limit_cylinder_windup()

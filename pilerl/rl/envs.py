@@ -24,7 +24,6 @@ from torchrl.data import Unbounded
 from torchrl.envs import GymWrapper, default_info_dict_reader
 
 from pilerl.sim import get_simulator, make_gym_env
-from pilerl.sim.stepping import step_together
 from pilerl.sim.torchrl_env import SimulatorBatchEnv
 
 SUCCESS_KEY = "success"
@@ -104,17 +103,9 @@ class ConditionMixtureEnv(gym.Env):
         return obs, self._reported(info)
 
     def step(self, action):
-        return self._training_step(*self.active.step(action))
-
-    @classmethod
-    def step_many(cls, envs, actions) -> list[tuple]:
-        """``[env.step(a) for env, a in zip(envs, actions)]``, the simulators of the episodes
-        stepped together where their class can (``pilerl.sim.stepping``)."""
-        results = step_together([env.active for env in envs], actions)
-        return [env._training_step(*result) for env, result in zip(envs, results, strict=True)]
-
-    def _training_step(self, obs, _reward, terminated, truncated, info) -> tuple:
-        return obs, self.training_reward(info), terminated, truncated, self._reported(info)
+        obs, _, terminated, truncated, info = self.active.step(action)
+        reward = self.training_reward(info)
+        return obs, reward, terminated, truncated, self._reported(info)
 
     def training_reward(self, info: Mapping[str, float]) -> float:
         """``sum(weight * info[part])`` over the configured reward parts."""

@@ -8,11 +8,9 @@ float32.
   ``[]`` (what TorchRL's ``GymEnv`` gives, at about half its per-step cost: ``GymEnv``
   reads the observation through its spec's ``encode`` and completes the done keys at
   every step; see docs/performance.md).
-- ``num_envs=N``: ``SimulatorBatchEnv``, a native ``EnvBase`` that steps N simulators in
-  this process and writes their readings straight into preallocated arrays, batch size
-  ``[N]``; simulators whose class offers ``step_many`` are stepped together through it
-  (``pilerl.sim.stepping``: the pile loader updates their soil models in one vectorised
-  pass), the others one after another. TorchRL's per-step bookkeeping (~0.2 ms) is then paid once
+- ``num_envs=N``: ``SimulatorBatchEnv``, a native ``EnvBase`` that steps N simulators one
+  after another in this process and writes their readings straight into preallocated
+  arrays, batch size ``[N]``. TorchRL's per-step bookkeeping (~0.2 ms) is then paid once
   for N simulators; measured on one core, 4 pile loaders per env run fastest (beyond that
   the models stop fitting in cache). Gymnasium's ``SyncVectorEnv`` under ``GymWrapper``
   was measured slower than a single env: it merges every ``info`` key into arrays.
@@ -40,16 +38,13 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase, ParallelEnv
 
 from .registry import DEFAULT_SIMULATOR, get_simulator, register_gymnasium_envs
-from .stepping import step_together
 
 END_FLAGS = ("done", "terminated", "truncated")
 INFO_KEY = "info"  # the ``info_keys`` of a SimulatorBatchEnv, one column each
 
 
 class SimulatorBatchEnv(EnvBase):
-    """N Gymnasium simulators with ``Dict``-of-``Box`` observations, stepped together
-    (``pilerl.sim.stepping.step_together``: one ``step_many`` call for those whose class
-    offers it, one ``step`` each for the others).
+    """N Gymnasium simulators with ``Dict``-of-``Box`` observations, stepped in a loop.
 
     Args:
         make_env: builds one simulator (called ``num_envs`` times).
@@ -209,12 +204,10 @@ class SimulatorBatchEnv(EnvBase):
             stepped = stepped.reshape(n).tolist()
         reward = np.zeros((n, 1), dtype=self._reward_dtype)
         terminated, truncated = self._terminated, self._truncated
-        # an ended sub-env of a partial step is left as it is
-        moving = range(n) if stepped is None else [i for i in range(n) if stepped[i]]
-        results = step_together([self._envs[i] for i in moving], [actions[i] for i in moving])
-        for i, (obs, reward[i, 0], terminated[i, 0], truncated[i, 0], info) in zip(
-            moving, results, strict=True
-        ):
+        for i, env in enumerate(self._envs):
+            if stepped is not None and not stepped[i]:
+                continue  # an ended sub-env of a partial step: left as it is
+            obs, reward[i, 0], terminated[i, 0], truncated[i, 0], info = env.step(actions[i])
             self._write_obs(i, obs, info)
         if self._ending_together and not (terminated | truncated).all():
             terminated = truncated = self._not_ended  # held back until all have ended

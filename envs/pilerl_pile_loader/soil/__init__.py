@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .base import BucketGeometry, PileGeometry, SoilModel, update_together
+from .base import BucketGeometry, PileGeometry, SoilModel
 from .heightfield import HeightfieldSoil
 from .particles import ParticleSoil
 
@@ -22,11 +22,4 @@ def get_soil_model(name: str) -> type[SoilModel]:
         ) from None
 
 
-__all__ = [
-    "SOIL_MODELS",
-    "BucketGeometry",
-    "PileGeometry",
-    "SoilModel",
-    "get_soil_model",
-    "update_together",
-]
+__all__ = ["SOIL_MODELS", "BucketGeometry", "PileGeometry", "SoilModel", "get_soil_model"]

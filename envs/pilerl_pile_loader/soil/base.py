@@ -6,11 +6,6 @@ The environment asks it to add itself to the MuJoCo model spec before compiling
 (``reset``) and to advance the bucket-material interaction (``update``) a few times per
 control step. Mass is the currency: ``pile_mass_kg + bucket_load_kg + spilled_kg`` is the
 same before and after every call.
-
-Many simulators stepped together (``PileLoadingEnv.step_many``) update their soil models
-together (``update_together``): a model class may update many of its instances in one call
-(``update_many``, e.g. the heightfield's vectorised pass) with exactly the results each
-``update`` gives alone; by default they are updated one by one.
 """
 
 from __future__ import annotations
@@ -18,7 +13,6 @@ from __future__ import annotations
 import functools
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
@@ -188,14 +182,6 @@ class SoilModel(ABC):
     def update(self, dt: float) -> None:
         """Advance the bucket-material interaction by ``dt`` seconds of simulated time."""
 
-    @classmethod
-    def update_many(cls, soils: Sequence[SoilModel], dts: Sequence[float]) -> None:
-        """``soil.update(dt)`` for each of ``soils`` (instances of this class, each bound
-        to its own simulator); a model may override it to compute them together, with
-        exactly the results of updating each alone."""
-        for soil, dt in zip(soils, dts, strict=True):
-            soil.update(dt)
-
     @property
     @abstractmethod
     def pile_mass_kg(self) -> float:
@@ -216,18 +202,3 @@ class SoilModel(ABC):
     def fill_fraction(self) -> float:
         """Bucket load as a fraction of the bucket's rated (struck) capacity."""
         return self.bucket_load_volume_m3 / self.bucket.rated_volume_m3
-
-
-def update_together(soils: Sequence[SoilModel], dts: Sequence[float]) -> None:
-    """``soil.update(dt)`` for each soil (each of its own simulator), the soils of one model
-    class in one ``update_many`` call."""
-    by_class: dict[type[SoilModel], tuple[list[SoilModel], list[float]]] = {}
-    for soil, dt in zip(soils, dts, strict=True):
-        group, group_dts = by_class.setdefault(type(soil), ([], []))
-        group.append(soil)
-        group_dts.append(dt)
-    for cls, (group, group_dts) in by_class.items():
-        if len(group) == 1:
-            group[0].update(group_dts[0])
-        else:
-            cls.update_many(group, group_dts)

@@ -63,7 +63,6 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -71,7 +70,6 @@ import numpy as np
 
 from .base import BucketGeometry, SoilModel
 from .earthmoving import GRAVITY_M_S2, cutting_force_n, fee_factors
-from .heightfield_batch import update_heightfields
 
 if TYPE_CHECKING:
     from ..machine import Machine
@@ -197,12 +195,6 @@ class HeightfieldSoil(SoilModel):
         self._side = model.actuator("soil_side").id
         self._lift = model.actuator("soil_lift").id
         self._payload = model.body("payload").id
-        if (self._side, self._lift) != (self._push + 1, self._push + 2):
-            raise RuntimeError(
-                "HeightfieldSoil.bind: the soil's push, side and lift actuators must be "
-                f"consecutive, got ids {self._push}, {self._side}, {self._lift}"
-            )
-        self._resistance_rows = slice(self._push, self._push + 3)
         xs = self._x0 + self.dx * np.arange(self.ncol)
         ys = self._y0 + self.dy * np.arange(self.nrow)
         self._grid_x, self._grid_y = np.meshgrid(xs, ys)  # (nrow, ncol)
@@ -228,20 +220,6 @@ class HeightfieldSoil(SoilModel):
         self._edge_offsets_list = (
             np.linspace(-0.45, 0.45, EDGE_SAMPLES) * self.bucket.width_m
         ).tolist()
-        self._layout_row = np.array(  # heightfield_batch's columns, in its order
-            [
-                self._x0,
-                self._y0,
-                self.dx,
-                self.dy,
-                self.ncol,
-                self.nrow,
-                self.bucket.width_m / 2,
-                self.material.density_kg_m3,
-                self.cell_area_m2,
-            ],
-            dtype=float,
-        )
         self.heights = np.zeros((self.nrow, self.ncol))  # pile surface [m]; reset/update write it
         self._pile_mass_kg = 0.0  # of ``heights``, summed where they change (read every step)
         self._bind_mouth()
@@ -325,6 +303,7 @@ class HeightfieldSoil(SoilModel):
         s_poly = (world[:, :2] - hinge[:2]) @ heading
         z_poly = world[:, 2]
 
+        density = self.material.density_kg_m3
         pitch = machine.bucket_pitch()
         hold_m3 = float(np.interp(pitch, self._pitch_table, self._holding_table))
         if self.measure_mouth:
@@ -333,7 +312,12 @@ class HeightfieldSoil(SoilModel):
             fade = math.exp(-dt / MOUTH_CREDIT_TIME_S)
             self._mouth_credit_m3 = self._mouth_credit_m3 * fade + swept_m3
         self._intake(hinge, heading, s_poly, z_poly, hold_m3)
-        self._spill(hold_m3, dt)
+
+        load_m3 = self.bucket_load_kg / density
+        if load_m3 > hold_m3:
+            spill_m3 = (load_m3 - hold_m3) * (1.0 - math.exp(-dt / SPILL_TIME_CONSTANT_S))
+            self.bucket_load_kg -= spill_m3 * density
+            self.spilled_kg += spill_m3 * density
 
         edge = world[1]
         self._depth_m = self._edge_depth(edge, heading)
@@ -350,39 +334,6 @@ class HeightfieldSoil(SoilModel):
             force, heading, self.breakout_force_n(self._depth_m), lift_ratio=lift_ratio
         )
         self._write_payload()
-
-    @classmethod
-    def update_many(cls, soils: Sequence[SoilModel], dts: Sequence[float]) -> None:
-        """``soil.update(dt)`` for each soil, bit for bit; the soils of the default options
-        (footprint intake, no mouth tally, edge resistance) in one vectorised pass
-        (``heightfield_batch``), the others one by one."""
-        together: dict[int, tuple[list[HeightfieldSoil], list[float]]] = {}
-        for soil, dt in zip(soils, dts, strict=True):
-            if soil.intake == "footprint" and not (soil.measure_mouth or soil.body_resistance):
-                group, group_dts = together.setdefault(len(soil._polygon_local), ([], []))
-                group.append(soil)
-                group_dts.append(dt)
-            else:
-                soil.update(dt)
-        for group, group_dts in together.values():
-            if len(group) == 1:
-                group[0].update(group_dts[0])
-            else:
-                update_heightfields(group, group_dts, margin_m=CANDIDATE_MARGIN_M)
-
-    @property
-    def layout_row(self) -> np.ndarray:
-        """The constants the vectorised update reads per soil (``heightfield_batch``)."""
-        return self._layout_row
-
-    def _spill(self, hold_m3: float, dt: float) -> None:
-        """Load above the holding volume ``hold_m3`` [m^3] slides out (module docstring, 2)."""
-        density = self.material.density_kg_m3
-        load_m3 = self.bucket_load_kg / density
-        if load_m3 > hold_m3:
-            spill_m3 = (load_m3 - hold_m3) * (1.0 - math.exp(-dt / SPILL_TIME_CONSTANT_S))
-            self.bucket_load_kg -= spill_m3 * density
-            self.spilled_kg += spill_m3 * density
 
     def _resistance_n(self, depth_m: float) -> float:
         """Horizontal resistance [N] of the bucket meeting the pile ``depth_m`` deep."""
@@ -438,7 +389,8 @@ class HeightfieldSoil(SoilModel):
         hold material (inside the bucket's width and its extent along the heading): the
         arithmetic per cell, and the order of the sum, are those of the whole-window form.
         """
-        room_m3 = hold_m3 - self.bucket_load_kg / self.material.density_kg_m3
+        density = self.material.density_kg_m3
+        room_m3 = hold_m3 - self.bucket_load_kg / density
         if room_m3 <= 0.0:
             return
         hx, hy = float(heading[0]), float(heading[1])
@@ -478,7 +430,7 @@ class HeightfieldSoil(SoilModel):
             return
         s_a, z_a, rise, span = s_poly[live], z_poly[live], (z_b - z_poly)[live], span[live]
         # one row per edge, one column per cell: NumPy reduces across rows in one pass over
-        # the cells, but along a short last axis row by row (~6x slower here, measured)
+        # the cells, along a short last axis row by row (~6x slower here, measured)
         t = (s[candidate] - s_a[:, None]) / span[:, None]
         on_edge = (t >= 0.0) & (t <= 1.0)
         z_at = z_a[:, None] + t * rise[:, None]
@@ -488,35 +440,21 @@ class HeightfieldSoil(SoilModel):
         column = np.minimum(heights[candidate], z_roof) - z_floor
         taken = np.zeros(heights.shape)
         taken[candidate] = np.where(inside, np.clip(column, 0.0, None), 0.0)
-        if self.intake != "mouth":
-            self._take(taken, window, room_m3)
-            return
-        if float(taken.sum()) * self.cell_area_m2 <= 0.0:
-            return
-        floor = np.zeros(heights.shape)  # cells outside the candidates give nothing
-        floor[candidate] = np.where(inside, z_floor, 0.0)
-        taken, taken_m3 = self._through_mouth(taken, s, floor, s_poly, z_poly, room_m3)
-        if taken_m3 > 0.0:
-            self._move_to_bucket(taken, taken_m3, window)
-
-    def _take(self, taken: np.ndarray, window: tuple[slice, slice], room_m3: float) -> None:
-        """The end of the footprint intake: the column heights ``taken`` [m] of the grid
-        ``window``, scaled down to the room left in the bucket (``room_m3``), move into it."""
         taken_m3 = float(taken.sum()) * self.cell_area_m2
         if taken_m3 <= 0.0:
             return
-        if taken_m3 > room_m3:
+        if self.intake == "mouth":
+            floor = np.zeros(heights.shape)  # cells outside the candidates give nothing
+            floor[candidate] = np.where(inside, z_floor, 0.0)
+            taken, taken_m3 = self._through_mouth(taken, s, floor, s_poly, z_poly, room_m3)
+            if taken_m3 <= 0.0:
+                return
+        elif taken_m3 > room_m3:
             taken *= room_m3 / taken_m3
             taken_m3 = room_m3
-        self._move_to_bucket(taken, taken_m3, window)
-
-    def _move_to_bucket(
-        self, taken: np.ndarray, taken_m3: float, window: tuple[slice, slice]
-    ) -> None:
-        """Lower the pile by ``taken`` [m] over ``window`` and load its ``taken_m3``."""
-        self.heights[window] = self.heights[window] - taken
+        self.heights[window] = heights - taken
         self._sum_pile_mass()
-        self.bucket_load_kg += taken_m3 * self.material.density_kg_m3
+        self.bucket_load_kg += taken_m3 * density
 
     def _mouth_sweep_m3(self, hinge: np.ndarray, rotation: np.ndarray) -> float:
         """Pile volume [m^3] the mouth swept into the bucket since the last update: each
@@ -658,37 +596,6 @@ class HeightfieldSoil(SoilModel):
         biasprm[self._side, 2] = -side / YIELD_SPEED_M_S
         forcerange[self._lift] = (-breakout_n, breakout_n)
         biasprm[self._lift, 2] = -breakout_n / YIELD_SPEED_M_S
-
-    @staticmethod
-    def _write_resistances(
-        soils: Sequence[HeightfieldSoil],
-        rotation: np.ndarray,
-        heading: np.ndarray,
-        force_n: np.ndarray,
-        breakout_n: np.ndarray,
-    ) -> None:
-        """``_write_resistance(force_n[k], heading[k], breakout_n[k])`` of each soil (no
-        lift ratio: the default options), the directions of all computed together:
-        ``rotation`` [n, 3, 3] of each bucket (its ``xmat``), ``heading`` [n, 2]. Each
-        soil's three dampers are consecutive actuators (``bind``): one write per array."""
-        to_bucket = rotation.transpose(0, 2, 1)  # each matrix with the strides of ``.T``
-        zeros = np.zeros(len(soils))
-        hx, hy = heading[:, 0], heading[:, 1]
-        push = to_bucket @ np.stack([hx, hy, zeros], axis=1)[:, :, None]
-        side = to_bucket @ np.stack([-hy, hx, zeros], axis=1)[:, :, None]
-        lift = to_bucket @ UP
-        gear = np.concatenate([push, side, lift[:, :, None]], axis=2).transpose(0, 2, 1)
-        side_n = SIDE_RATIO * force_n
-        ranges = np.stack([-force_n, zeros, -side_n, side_n, -breakout_n, breakout_n], axis=1)
-        bias = np.stack(
-            [-force_n / YIELD_SPEED_M_S, -side_n / YIELD_SPEED_M_S, -breakout_n / YIELD_SPEED_M_S],
-            axis=1,
-        )
-        for k, soil in enumerate(soils):
-            rows = soil._resistance_rows
-            soil._gear[rows, :3] = gear[k]
-            soil._forcerange[rows] = ranges[k].reshape(3, 2)
-            soil._biasprm[rows, 2] = bias[k]
 
     def _write_payload(self) -> None:
         mass = max(self.bucket_load_kg, 1e-6)
