@@ -171,7 +171,7 @@ def print_table(soil: str, rows: list[Row]) -> None:
     raw, loop, one = by_name["raw mj_step"], by_name["simulator loop"], by_name["torchrl x1"]
     print(f"\n### soil = {soil}\n")
     print(
-        "| path | control steps/s | sim s per wall s | vs raw mj_step | vs simulator loop "
+        "| path | control steps/s | sim s per s | vs raw mj_step | vs simulator loop "
         "| vs torchrl x1 |"
     )
     print("|---|---:|---:|---:|---:|---:|")
@@ -213,12 +213,13 @@ def main() -> None:
             row.close()
         print_table(soil, rows)
     load_after = os.getloadavg()
-    print(
-        "\nload average after: " + ", ".join(f"{v:.1f}" for v in load_after) + ". "
-        f"The ParallelEnv rows show scaling only if {args.workers} cores were idle "
-        f"(load average well below {os.cpu_count()} - {args.workers}); on a loaded machine "
-        "they measure the share of the cores this run got."
-    )
+    print("\nload average after: " + ", ".join(f"{v:.1f}" for v in load_after) + ".")
+    if not args.cpu:
+        print(
+            f"The ParallelEnv rows show scaling only if {args.workers} cores were idle (load "
+            f"average well below {os.cpu_count()} - {args.workers}); on a loaded machine they "
+            "measure the share of the cores this run got."
+        )
 
 
 if __name__ == "__main__":
