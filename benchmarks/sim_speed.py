@@ -23,6 +23,10 @@ the load drifts, and rounds spread it over the rows alike. The multi-process row
 scaling only where the machine has idle cores: the script prints the cores and the load
 average so a reader can tell (rerun it on a quiet machine for the scaling figures).
 
+``--cpu`` times the one-process rows with this process's CPU time instead of the wall
+clock (on a machine loaded by other jobs the wall clock also counts their time) and
+leaves out the ``ParallelEnv`` rows, whose work is in the workers.
+
     python benchmarks/sim_speed.py --soil heightfield          # the default soil model
     python benchmarks/sim_speed.py --soil heightfield --seconds 60 --repeats 5
     python benchmarks/sim_speed.py                              # all soil models
@@ -64,27 +68,30 @@ def fixed_policy():
 class Row:
     """One measured path: ``run()`` advances ``simulated_s`` simulated seconds."""
 
+    clock: Callable[[], float] = time.perf_counter  # ``time.process_time`` with ``--cpu``
+
     def __init__(self, name: str, run: Callable[[], None], simulated_s: float, close=None):
         self.name, self.run, self.simulated_s = name, run, simulated_s
         self.close = close or (lambda: None)
-        self.walls: list[float] = []
+        self.times: list[float] = []
 
     def time_once(self) -> None:
-        start = time.perf_counter()
+        start = self.clock()
         self.run()
-        self.walls.append(time.perf_counter() - start)
+        self.times.append(self.clock() - start)
 
     @property
-    def wall_s(self) -> float:
-        return statistics.median(self.walls)
+    def elapsed_s(self) -> float:
+        return statistics.median(self.times)
 
     @property
     def real_time_factor(self) -> float:
-        return self.simulated_s / self.wall_s
+        return self.simulated_s / self.elapsed_s
 
 
-def rows_for(soil: str, steps: int, batch: int, workers: int) -> list[Row]:
-    """The rows of one soil model, built and warmed up (start-up is not timed)."""
+def rows_for(soil: str, steps: int, batch: int, workers: int, *, processes: bool) -> list[Row]:
+    """The rows of one soil model, built and warmed up (start-up is not timed);
+    ``processes``: with the ``ParallelEnv`` rows."""
     env = gym.make("pilerl/PileLoading-v0", soil=soil, sensor_noise=0.0)
     raw = env.unwrapped
     dt = raw.dt
@@ -132,6 +139,8 @@ def rows_for(soil: str, steps: int, batch: int, workers: int) -> list[Row]:
             f"torchrl one process x{batch}", make_torchrl_env(**common, num_envs=batch), batch
         )
     )
+    if not processes:
+        return rows
     rows.append(
         torchrl_row(
             f"ParallelEnv {workers} procs x1, shared buffers (parent spins)",
@@ -162,7 +171,7 @@ def print_table(soil: str, rows: list[Row]) -> None:
     raw, loop, one = by_name["raw mj_step"], by_name["simulator loop"], by_name["torchrl x1"]
     print(f"\n### soil = {soil}\n")
     print(
-        "| path | control steps/s | sim s per wall s | vs raw mj_step | vs simulator loop "
+        "| path | control steps/s | sim s per s | vs raw mj_step | vs simulator loop "
         "| vs torchrl x1 |"
     )
     print("|---|---:|---:|---:|---:|---:|")
@@ -182,18 +191,21 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=4, help="simulators in the batched rows")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 2)
     parser.add_argument("--repeats", type=int, default=3, help="rounds; each row's median")
+    parser.add_argument("--cpu", action="store_true", help="one-process rows in CPU time")
     args = parser.parse_args()
+    if args.cpu:
+        Row.clock = staticmethod(time.process_time)
     torch.set_num_threads(1)
     steps = int(args.seconds / CONTROL_DT_S)
     load_before = os.getloadavg()
     print(
         f"threads: torch={torch.get_num_threads()}, OMP={os.environ['OMP_NUM_THREADS']}; "
         f"{steps} control steps at 20 Hz (500 Hz physics) per row, median of {args.repeats} "
-        f"rounds; cores={os.cpu_count()}, load average before: "
-        + ", ".join(f"{v:.1f}" for v in load_before)
+        f"rounds, {'CPU time' if args.cpu else 'wall clock'}; cores={os.cpu_count()}, "
+        "load average before: " + ", ".join(f"{v:.1f}" for v in load_before)
     )
     for soil in args.soil or sorted(SOIL_MODELS):
-        rows = rows_for(soil, steps, args.batch, args.workers)
+        rows = rows_for(soil, steps, args.batch, args.workers, processes=not args.cpu)
         for _ in range(args.repeats):
             for row in rows:
                 row.time_once()
@@ -201,12 +213,13 @@ def main() -> None:
             row.close()
         print_table(soil, rows)
     load_after = os.getloadavg()
-    print(
-        "\nload average after: " + ", ".join(f"{v:.1f}" for v in load_after) + ". "
-        f"The ParallelEnv rows show scaling only if {args.workers} cores were idle "
-        f"(load average well below {os.cpu_count()} - {args.workers}); on a loaded machine "
-        "they measure the share of the cores this run got."
-    )
+    print("\nload average after: " + ", ".join(f"{v:.1f}" for v in load_after) + ".")
+    if not args.cpu:
+        print(
+            f"The ParallelEnv rows show scaling only if {args.workers} cores were idle (load "
+            f"average well below {os.cpu_count()} - {args.workers}); on a loaded machine they "
+            "measure the share of the cores this run got."
+        )
 
 
 if __name__ == "__main__":

