@@ -9,7 +9,9 @@ lr 1e-3, MSE, on the same synthetic data, in one run:
 - ``train_bc``: pilerl's loop (one contiguous tensor of normalised inputs, a row gather
   per step).
 
-- ``train_bc, packed masks``: ``train_bc`` with ``dropout_masks="packed"``.
+- ``train_bc, packed masks``: ``train_bc`` with ``dropout_masks="packed"``;
+- ``train_bc, masks drawn ahead``: ``train_bc`` with ``draw_ahead=True`` (torch's masks
+  drawn on a second thread, bit-identical).
 
 Each path runs ``--repeats`` times, interleaved; the table gives the median wall time and
 the ratios are medians of the per-round ratios (the machine may be shared). The ensemble
@@ -34,7 +36,8 @@ with bit-identical weights.
     python benchmarks/bc_throughput.py --paper --epochs 3 --threads 2
 
 ``--paper --epochs 150 --train-bc-only`` runs the whole schedule with ``train_bc`` alone and
-reports its measured wall time; ``--dropout-masks packed`` trains it with packed masks.
+reports its measured wall time; ``--dropout-masks packed`` trains it with packed masks,
+``--draw-ahead`` with torch's masks drawn ahead on a second thread.
 """
 
 from __future__ import annotations
@@ -144,6 +147,9 @@ def throughput(args: argparse.Namespace) -> None:
         "pilerl train_bc, packed masks": lambda: train_bc(
             fresh_actor(), data, None, packed, progress=False
         ),
+        "pilerl train_bc, masks drawn ahead": lambda: train_bc(
+            fresh_actor(), data, None, settings, progress=False, draw_ahead=True
+        ),
     }
     config = fresh_actor().module.config
 
@@ -225,7 +231,10 @@ def paper_schedule(args: argparse.Namespace) -> None:
 
     clock = EpochClock()
     start = time.perf_counter()
-    after, _ = train_bc(fresh_actor(), data, None, settings, logger=clock, progress=False)
+    after, _ = train_bc(
+        fresh_actor(), data, None, settings, logger=clock, progress=False,
+        draw_ahead=args.draw_ahead,
+    )  # fmt: skip
     after_wall = time.perf_counter() - start
     after_epochs = list(np.diff(clock.marks))
     same = before is not None and all(
@@ -237,7 +246,7 @@ def paper_schedule(args: argparse.Namespace) -> None:
     print(
         f"Paper schedule, DANNet, batch {BATCH}, {PAPER_SAMPLES:,} samples, {args.epochs} of "
         f"{PAPER_EPOCHS} epochs measured, {torch.get_num_threads()} thread(s), train_bc's "
-        f"dropout masks: {args.dropout_masks}\n"
+        f"dropout masks: {args.dropout_masks}{', drawn ahead' if args.draw_ahead else ''}\n"
     )
     print("| path | epochs s (median, min-max) | measured wall s | 150 epochs |")
     print("|---|---|---:|---:|")
@@ -335,6 +344,9 @@ def main() -> None:
         choices=["bernoulli", "packed"],
         default="bernoulli",
         help="with --paper: train_bc's dropout masks",
+    )
+    parser.add_argument(
+        "--draw-ahead", action="store_true", help="with --paper: train_bc(draw_ahead=True)"
     )
     parser.add_argument(
         "--pass-sizes", type=int, nargs="*", default=[], help="more ensemble pass sizes"

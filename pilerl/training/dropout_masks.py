@@ -20,7 +20,7 @@ same distribution, not the same draws (docs/performance.md, "Training and actors
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 
 import torch
@@ -91,6 +91,37 @@ class GivenMaskDropout(nn.Module):
         if self.mask is None:
             raise RuntimeError("GivenMaskDropout: training needs a mask (the buffer 'mask')")
         return x * self.mask
+
+
+def dropout_layers(
+    module: nn.Module, run: Callable[[], object]
+) -> dict[str, tuple[float, tuple[int, ...]]]:
+    """Each ``nn.Dropout`` of ``module`` that ``run()`` (a forward pass of one row) calls, in
+    the order it is called: name -> (p, the shape of one row's features there). Runs in
+    eval mode (no draws) and without gradients; the mode is put back."""
+    found: dict[str, tuple[float, tuple[int, ...]]] = {}
+
+    def record(name: str):
+        def hook(layer: nn.Module, inputs: tuple[torch.Tensor, ...], _) -> None:
+            found.setdefault(name, (layer.p, tuple(inputs[0].shape[1:])))
+
+        return hook
+
+    hooks = [
+        layer.register_forward_hook(record(name))
+        for name, layer in module.named_modules()
+        if type(layer) is nn.Dropout
+    ]
+    was_training = module.training
+    module.eval()
+    try:
+        with torch.no_grad():
+            run()
+    finally:
+        module.train(was_training)
+        for hook in hooks:
+            hook.remove()
+    return found
 
 
 def replace_dropout(module: nn.Module, make: type[nn.Module]) -> dict[str, nn.Dropout]:

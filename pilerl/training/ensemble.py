@@ -43,7 +43,7 @@ from pilerl.policies.config import ActorConfig
 from pilerl.policies.registry import build_policy
 
 from .bc import EVAL_BATCH, BCSettings
-from .dropout_masks import GivenMaskDropout, packed_keep_masks, replace_dropout
+from .dropout_masks import GivenMaskDropout, dropout_layers, packed_keep_masks, replace_dropout
 
 MEMBERS_PER_PASS = 16  # members trained together (see the module docstring)
 
@@ -114,7 +114,7 @@ def _train_pass(
     val = _readings(members[0], validation) if validation is not None else None
     dropouts = {}  # packed masks: dropout layer -> (p, the shape of one row's features)
     if (settings.dropout_masks or "packed") == "packed":
-        dropouts = _dropout_inputs(members[0], readings[:1])
+        dropouts = dropout_layers(members[0], lambda: members[0](*readings[:1].split(1, dim=-1)))
         replace_dropout(base, GivenMaskDropout)
 
     def predict(p, b, x):
@@ -167,33 +167,6 @@ def _train_pass(
         validation_loss=np.stack(val_hist, axis=1) if val_hist else None,
         members=members,
     )
-
-
-def _dropout_inputs(
-    policy: SensorPolicy, readings: torch.Tensor
-) -> dict[str, tuple[float, tuple[int, ...]]]:
-    """Each ``nn.Dropout`` of ``policy`` by name: (p, the shape of the features of one row
-    it sees), found by running ``readings`` [rows, n_inputs] through it."""
-    found: dict[str, tuple[float, tuple[int, ...]]] = {}
-
-    def record(name: str):
-        def hook(module: torch.nn.Module, inputs: tuple[torch.Tensor, ...], _) -> None:
-            found[name] = (module.p, tuple(inputs[0].shape[1:]))
-
-        return hook
-
-    hooks = [
-        module.register_forward_hook(record(name))
-        for name, module in policy.named_modules()
-        if type(module) is torch.nn.Dropout
-    ]
-    try:
-        with torch.no_grad():
-            policy(*readings.split(1, dim=-1))
-    finally:
-        for hook in hooks:
-            hook.remove()
-    return found
 
 
 def write_ensemble_curves(result: EnsembleResult, path: str | Path) -> Path:

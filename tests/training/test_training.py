@@ -313,6 +313,43 @@ def test_gradient_step_matches_the_bcloss_path(datasets):
     assert all(torch.equal(got[k], want[k]) for k in want)
 
 
+def test_masks_drawn_ahead_give_the_same_run(datasets, tmp_path):
+    """draw_ahead=True: torch's masks drawn on a second thread give bit-identical losses,
+    weights and RNG state (DANNet, s' wider than s, a short last batch), with resume."""
+    _, train, validation = datasets
+    data = train.to_tensordict()
+    wider = [*S, "boom_pressure", "bucket_pressure", "pump_angle"]
+    assert data.batch_size[0] % 100 != 0  # batches of 100: a short last batch
+
+    def run(draw_ahead: bool, epochs: int = 3, run_dir: Path | None = None):
+        torch.manual_seed(11)
+        actor = make_actor("dannet", sensors=S, stats=train.stats, attention_sensors=wider)
+        settings = BCSettings(epochs=epochs, batch_size=100, seed=7)
+        actor, history = train_bc(
+            actor, data, validation, settings, run_dir=run_dir, progress=False,
+            draw_ahead=draw_ahead,
+        )  # fmt: skip
+        return actor, history, torch.get_rng_state()
+
+    reference, expected, expected_rng = run(False)
+    actor, history, rng = run(True)
+    assert history == expected
+    assert torch.equal(rng, expected_rng)
+    want, got = reference.module.state_dict(), actor.module.state_dict()
+    assert all(torch.equal(got[k], want[k]) for k in want)
+    layers = [type(m) for m in actor.module.modules() if "Dropout" in type(m).__name__]
+    assert layers == [torch.nn.Dropout] * 4  # put back after training
+    run(True, epochs=2, run_dir=tmp_path)  # "killed" after 2 epochs
+    resumed, history, _ = run(True, run_dir=tmp_path)
+    assert history == expected
+    assert all(torch.equal(resumed.module.state_dict()[k], want[k]) for k in want)
+    with pytest.raises(ValueError, match="draw_ahead draws torch's bernoulli masks"):
+        train_bc(
+            make_actor("dannet", sensors=S, stats=train.stats), data, None,
+            BCSettings(epochs=1, dropout_masks="packed"), progress=False, draw_ahead=True,
+        )  # fmt: skip
+
+
 def test_ensemble_members_equal_separate_runs(datasets):
     _, train, _ = datasets
     data = train.to_tensordict()
