@@ -250,7 +250,8 @@ def paper_schedule(args: argparse.Namespace) -> None:
     )
     print("| path | epochs s (median, min-max) | measured wall s | 150 epochs |")
     print("|---|---|---:|---:|")
-    rows = [(f"pilerl train_bc ({args.dropout_masks} masks)", after_epochs, after_wall)]
+    ahead = ", drawn ahead" if args.draw_ahead else ""
+    rows = [(f"pilerl train_bc ({args.dropout_masks} masks{ahead})", after_epochs, after_wall)]
     if before is not None:
         rows.insert(0, ("BCLoss on tensordicts (before)", before_epochs, before_wall))
     for name, epochs, wall in rows:
