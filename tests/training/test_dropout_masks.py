@@ -83,3 +83,34 @@ def test_dropout_masks_swap_the_layers_and_put_them_back():
         dropout_masks(model, "fast"),
     ):
         pass
+
+
+def test_masks_drawn_ahead_are_torchs_draws_in_order():
+    from pilerl.training.draw_ahead import masks_ahead
+
+    def model() -> nn.Sequential:
+        torch.manual_seed(0)
+        return nn.Sequential(nn.Linear(3, 8), nn.Dropout(0.35), nn.Linear(8, 5), nn.Dropout(0.5))
+
+    rows = [7, 7, 3]  # a short last batch
+    inputs = [torch.randn(n, 3) for n in rows]
+    reference = model().train()
+    torch.manual_seed(4)
+    expected = [reference(x) for x in inputs]
+    expected_state = torch.get_rng_state()
+
+    ahead = model().train()
+    with masks_ahead(ahead, lambda: ahead(inputs[0][:1])) as feed:
+        assert feed is not None and feed.layers == [(0.35, (8,)), (0.5, (5,))]
+        torch.manual_seed(4)
+        feed.start_epoch(rows)
+        for x, want in zip(inputs, expected, strict=True):
+            feed.next_step()
+            assert torch.equal(ahead(x), want)
+        feed.end_epoch()
+        assert torch.equal(torch.get_rng_state(), expected_state)
+        feed.start_epoch([2])
+        feed.next_step()
+        with pytest.raises(RuntimeError, match=r"drawn for dropout layer 0, which got \(7, 8\)"):
+            ahead(inputs[0])
+    assert [type(m) for m in ahead] == [nn.Linear, nn.Dropout, nn.Linear, nn.Dropout]
