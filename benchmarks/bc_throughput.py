@@ -9,13 +9,23 @@ lr 1e-3, MSE, on the same synthetic data, in one run:
 - ``train_bc``: pilerl's loop (one contiguous tensor of normalised inputs, a row gather
   per step).
 
+- ``train_bc, packed masks``: ``train_bc`` with ``dropout_masks="packed"``;
+- ``train_bc, masks drawn ahead``: ``train_bc`` with ``draw_ahead=True`` (torch's masks
+  drawn on a second thread, bit-identical).
+
 Each path runs ``--repeats`` times, interleaved; the table gives the median wall time and
 the ratios are medians of the per-round ratios (the machine may be shared). The ensemble
 rows train ``--seeds`` members (``train_bc_ensemble``, ``torch.func``, in passes of
-``MEMBERS_PER_PASS``; above that also all in one pass, as before) and give their cost in
-one-seed units (the median one-seed ``train_bc`` time of the same run).
+``MEMBERS_PER_PASS``), with packed dropout masks (now) and torch's ``bernoulli`` draws
+(before), and give their cost in one-seed units (the median one-seed ``train_bc`` time of
+the same run, torch's masks). ``--pass-sizes`` adds packed rows with other pass sizes.
 
     python benchmarks/bc_throughput.py --samples 51200 --epochs 1 --seeds 8 100
+
+``--profile N...`` profiles ``--profile-steps`` ensemble steps of N members with each mask
+draw instead (``torch.profiler``, the top entries by self CPU time); ``--masks-check K``
+trains K seeds with each mask draw on the synthetic data (validation on a second draw of
+it) and compares the validation losses per epoch (the two draws' distributions).
 
 ``--paper`` measures the paper's schedule end to end instead: ``train_bc`` and the
 ``BCLoss`` loop for ``--epochs`` epochs each on a synthetic D_I-size dataset (709,368
@@ -26,7 +36,8 @@ with bit-identical weights.
     python benchmarks/bc_throughput.py --paper --epochs 3 --threads 2
 
 ``--paper --epochs 150 --train-bc-only`` runs the whole schedule with ``train_bc`` alone and
-reports its measured wall time.
+reports its measured wall time; ``--dropout-masks packed`` trains it with packed masks,
+``--draw-ahead`` with torch's masks drawn ahead on a second thread.
 """
 
 from __future__ import annotations
@@ -58,8 +69,8 @@ PAPER_SAMPLES, PAPER_EPOCHS = 709_368, 150
 BATCH = 512
 
 
-def dataset(n: int) -> TensorDict:
-    generator = torch.Generator().manual_seed(0)
+def dataset(n: int, seed: int = 0) -> TensorDict:
+    generator = torch.Generator().manual_seed(seed)
     sensors = {k: torch.randn(n, 1, generator=generator) for k in ALL}
     action = torch.tanh(sensors["drive_pressure"] - sensors["telescope_pressure"]).expand(n, 3)
     return TensorDict({**sensors, "action": action.clone()}, [n])
@@ -127,28 +138,35 @@ def timed(call) -> float:
 def throughput(args: argparse.Namespace) -> None:
     data = dataset(args.samples)
     settings = BCSettings(epochs=args.epochs, batch_size=BATCH)
+    packed = BCSettings(epochs=args.epochs, batch_size=BATCH, dropout_masks="packed")
+    bernoulli = BCSettings(epochs=args.epochs, batch_size=BATCH, dropout_masks="bernoulli")
     paths = {
         "BCLoss on tensordicts (before)": lambda: bcloss_loop(fresh_actor(), data, settings, []),
         "plain PyTorch loop": lambda: plain_loop(data, args.epochs),
         "pilerl train_bc": lambda: train_bc(fresh_actor(), data, None, settings, progress=False),
+        "pilerl train_bc, packed masks": lambda: train_bc(
+            fresh_actor(), data, None, packed, progress=False
+        ),
+        "pilerl train_bc, masks drawn ahead": lambda: train_bc(
+            fresh_actor(), data, None, settings, progress=False, draw_ahead=True
+        ),
     }
     config = fresh_actor().module.config
+
+    def ensemble(seeds: int, masks: BCSettings, per_pass: int = MEMBERS_PER_PASS):
+        return lambda: train_bc_ensemble(
+            config, list(range(seeds)), data, None, masks, progress=False,
+            members_per_pass=per_pass,
+        )  # fmt: skip
+
     for seeds in args.seeds:
-        paths[f"{seeds}-seed ensemble (torch.func)"] = lambda seeds=seeds: train_bc_ensemble(
-            config, list(range(seeds)), data, None, settings, progress=False
-        )
-        if seeds > MEMBERS_PER_PASS:  # before: every member in one vmap-ed pass
-            paths[f"{seeds}-seed ensemble, one pass (before)"] = lambda seeds=seeds: (
-                train_bc_ensemble(
-                    config,
-                    list(range(seeds)),
-                    data,
-                    None,
-                    settings,
-                    progress=False,
-                    members_per_pass=seeds,
+        paths[f"{seeds}-seed ensemble, torch's masks (before)"] = ensemble(seeds, bernoulli)
+        paths[f"{seeds}-seed ensemble, packed masks"] = ensemble(seeds, packed)
+        for size in args.pass_sizes:
+            if size < seeds and size != MEMBERS_PER_PASS:
+                paths[f"{seeds}-seed ensemble, packed masks, passes of {size}"] = ensemble(
+                    seeds, packed, size
                 )
-            )
     warm_up = dataset(2 * BATCH)
     bcloss_loop(fresh_actor(), warm_up, BCSettings(epochs=1), [])
     train_bc(fresh_actor(), warm_up, None, BCSettings(epochs=1), progress=False)
@@ -187,7 +205,7 @@ def throughput(args: argparse.Namespace) -> None:
 
 def paper_schedule(args: argparse.Namespace) -> None:
     data = dataset(PAPER_SAMPLES)
-    settings = BCSettings(epochs=args.epochs, batch_size=BATCH)
+    settings = BCSettings(epochs=args.epochs, batch_size=BATCH, dropout_masks=args.dropout_masks)
     warm_up = dataset(2 * BATCH)
     train_bc(fresh_actor(), warm_up, None, BCSettings(epochs=1), progress=False)
     before, before_epochs, before_wall = None, [], float("nan")
@@ -213,7 +231,10 @@ def paper_schedule(args: argparse.Namespace) -> None:
 
     clock = EpochClock()
     start = time.perf_counter()
-    after, _ = train_bc(fresh_actor(), data, None, settings, logger=clock, progress=False)
+    after, _ = train_bc(
+        fresh_actor(), data, None, settings, logger=clock, progress=False,
+        draw_ahead=args.draw_ahead,
+    )  # fmt: skip
     after_wall = time.perf_counter() - start
     after_epochs = list(np.diff(clock.marks))
     same = before is not None and all(
@@ -224,11 +245,13 @@ def paper_schedule(args: argparse.Namespace) -> None:
     )
     print(
         f"Paper schedule, DANNet, batch {BATCH}, {PAPER_SAMPLES:,} samples, {args.epochs} of "
-        f"{PAPER_EPOCHS} epochs measured, {torch.get_num_threads()} thread(s)\n"
+        f"{PAPER_EPOCHS} epochs measured, {torch.get_num_threads()} thread(s), train_bc's "
+        f"dropout masks: {args.dropout_masks}{', drawn ahead' if args.draw_ahead else ''}\n"
     )
     print("| path | epochs s (median, min-max) | measured wall s | 150 epochs |")
     print("|---|---|---:|---:|")
-    rows = [("pilerl train_bc", after_epochs, after_wall)]
+    ahead = ", drawn ahead" if args.draw_ahead else ""
+    rows = [(f"pilerl train_bc ({args.dropout_masks} masks{ahead})", after_epochs, after_wall)]
     if before is not None:
         rows.insert(0, ("BCLoss on tensordicts (before)", before_epochs, before_wall))
     for name, epochs, wall in rows:
@@ -247,6 +270,63 @@ def paper_schedule(args: argparse.Namespace) -> None:
     )
 
 
+def profile_ensemble(args: argparse.Namespace) -> None:
+    """The top entries (self CPU) of ``--profile-steps`` ensemble steps, per mask draw."""
+    from torch.profiler import ProfilerActivity, profile
+
+    data = dataset(BATCH * args.profile_steps)
+    config = fresh_actor().module.config
+    for members in args.profile:
+        for masks in ("bernoulli", "packed"):
+            settings = BCSettings(epochs=1, batch_size=BATCH, dropout_masks=masks)
+            seeds = list(range(members))
+            train_bc_ensemble(config, seeds, dataset(2 * BATCH), None, settings, progress=False)
+            with profile(activities=[ProfilerActivity.CPU]) as prof:
+                start = time.perf_counter()
+                train_bc_ensemble(
+                    config, seeds, data, None, settings, progress=False, members_per_pass=members
+                )
+                wall = time.perf_counter() - start
+            print(
+                f"\n{members} members in one pass, {masks} masks, {args.profile_steps} steps "
+                f"of batch {BATCH} (with building the members), {wall:.2f} s under the "
+                "profiler; top entries by self CPU time:\n"
+            )
+            print(
+                prof.key_averages().table(
+                    sort_by="self_cpu_time_total", row_limit=args.profile_rows,
+                    max_name_column_width=45,
+                )
+            )  # fmt: skip
+
+
+def masks_check(args: argparse.Namespace) -> None:
+    """Validation losses of ``--masks-check`` seeds trained with each mask draw."""
+    data, validation = dataset(args.samples), dataset(args.samples // 4, seed=1)
+    config = fresh_actor().module.config
+    seeds = list(range(args.masks_check))
+    losses = {}
+    for masks in ("bernoulli", "packed"):
+        settings = BCSettings(epochs=args.epochs, batch_size=BATCH, dropout_masks=masks)
+        result = train_bc_ensemble(config, seeds, data, validation, settings, progress=False)
+        losses[masks] = result.validation_loss
+    print(
+        f"DANNet, batch {BATCH}, {args.samples:,} samples x {args.epochs} epochs, "
+        f"{len(seeds)} seeds per mask draw (train_bc_ensemble), validation on "
+        f"{args.samples // 4:,} other samples\n"
+    )
+    print("| epoch | bernoulli: mean +- std | packed: mean +- std | difference / its s.e. |")
+    print("|---:|---:|---:|---:|")
+    for epoch in range(args.epochs):
+        a, b = losses["bernoulli"][:, epoch], losses["packed"][:, epoch]
+        welch = (b.mean() - a.mean()) / np.sqrt(a.var(ddof=1) / len(a) + b.var(ddof=1) / len(b))
+        print(
+            f"| {epoch + 1} | {a.mean():.3e} +- {a.std(ddof=1):.2e} | "
+            f"{b.mean():.3e} +- {b.std(ddof=1):.2e} | {welch:+.2f} |"
+        )
+    print("\n(Welch's t: |t| < 2 is what two samples of one distribution give 95% of the time)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=51_200)
@@ -260,9 +340,32 @@ def main() -> None:
         action="store_true",
         help="with --paper: time train_bc alone (the whole 150 epochs in one run)",
     )
+    parser.add_argument(
+        "--dropout-masks",
+        choices=["bernoulli", "packed"],
+        default="bernoulli",
+        help="with --paper: train_bc's dropout masks",
+    )
+    parser.add_argument(
+        "--draw-ahead", action="store_true", help="with --paper: train_bc(draw_ahead=True)"
+    )
+    parser.add_argument(
+        "--pass-sizes", type=int, nargs="*", default=[], help="more ensemble pass sizes"
+    )
+    parser.add_argument("--profile", type=int, nargs="*", default=[], help="ensemble sizes")
+    parser.add_argument("--profile-steps", type=int, default=10)
+    parser.add_argument("--profile-rows", type=int, default=15)
+    parser.add_argument("--masks-check", type=int, default=0, help="seeds per mask draw")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    paper_schedule(args) if args.paper else throughput(args)
+    if args.profile:
+        profile_ensemble(args)
+    elif args.masks_check:
+        masks_check(args)
+    elif args.paper:
+        paper_schedule(args)
+    else:
+        throughput(args)
 
 
 if __name__ == "__main__":

@@ -59,6 +59,7 @@ def bc_settings(
     learning_rate: float,
     seed: int,
     trainer: str | None,
+    dropout_masks: str | None = None,
 ) -> BCSettings:
     """The training settings; ``gradient_steps`` (gradient training only) replaces
     ``epochs`` by as many epochs of ``rows`` as give about that many steps, while
@@ -72,6 +73,7 @@ def bc_settings(
         learning_rate=learning_rate,
         seed=seed,
         trainer=trainer,
+        dropout_masks=dropout_masks,
     )
 
 

@@ -9,13 +9,19 @@ seed would. The result is each member's training and validation loss per epoch, 
 mean +- std curves. Every member is trained by gradient (RAdam), NNet included: its
 Levenberg-Marquardt default applies to single runs (``train_bc``).
 
+Dropout masks are ``packed`` by default (``BCSettings.dropout_masks``, see
+``pilerl.training.dropout_masks``): each step draws a layer's masks for every member with
+one call, from 16-bit slices of 64-bit random words, and hands each member its own as a
+buffer. ``bernoulli`` keeps torch's own draws inside ``vmap`` (what ran before; about
+six times the cost to draw). Both draw from the global generator.
+
 Members are trained ``members_per_pass`` at a time (groups of consecutive seeds, one
-after the other): per member, a pass of 100 DANNets costs more than a pass of 16 (on the
-2-core development machine 100 seeds cost 109 one-seed runs in one pass and 79 in passes
-of 16, measured with ``benchmarks/bc_throughput.py``), and memory stays that of one
-pass. A pass trains exactly what ``train_bc_ensemble`` of its seeds alone trains: an
-ensemble of at most ``members_per_pass`` seeds is the one-pass result, bit for bit; a
-larger one draws each pass's dropout masks on its own.
+after the other): per member, a pass of 100 DANNets costs more than a pass of 16 (its
+activations no longer fit the caches; measured with ``benchmarks/bc_throughput.py``,
+docs/performance.md), and memory stays that of one pass. A pass trains exactly what
+``train_bc_ensemble`` of its seeds alone trains: an ensemble of at most
+``members_per_pass`` seeds is the one-pass result, bit for bit; a larger one draws each
+pass's dropout masks on its own.
 """
 
 from __future__ import annotations
@@ -37,6 +43,7 @@ from pilerl.policies.config import ActorConfig
 from pilerl.policies.registry import build_policy
 
 from .bc import EVAL_BATCH, BCSettings
+from .dropout_masks import GivenMaskDropout, dropout_layers, packed_keep_masks, replace_dropout
 
 MEMBERS_PER_PASS = 16  # members trained together (see the module docstring)
 
@@ -105,6 +112,10 @@ def _train_pass(
     base = copy.deepcopy(members[0]).to("meta")
     readings, target = _readings(members[0], train)
     val = _readings(members[0], validation) if validation is not None else None
+    dropouts = {}  # packed masks: dropout layer -> (p, the shape of one row's features)
+    if (settings.dropout_masks or "packed") == "packed":
+        dropouts = dropout_layers(members[0], lambda: members[0](*readings[:1].split(1, dim=-1)))
+        replace_dropout(base, GivenMaskDropout)
 
     def predict(p, b, x):
         """One member's action for readings x [B, n_inputs] (columns in ``in_keys`` order)."""
@@ -128,7 +139,11 @@ def _train_pass(
         total = torch.zeros(len(seeds))
         for start in range(0, n, settings.batch_size):
             idx = order[start : start + settings.batch_size]
-            losses = losses_of(params, buffers, readings[idx], target[idx])
+            masks = {
+                f"{name}.mask": packed_keep_masks([(len(seeds), len(idx), *shape)], p)[0]
+                for name, (p, shape) in dropouts.items()
+            }
+            losses = losses_of(params, buffers | masks, readings[idx], target[idx])
             optimizer.zero_grad()
             losses.sum().backward()
             optimizer.step()

@@ -63,6 +63,34 @@ def test_a_killed_run_resumes_to_the_same_weights(datasets, tmp_path):
     assert all(torch.equal(a[k], b[k]) for k in a)
 
 
+def test_packed_dropout_masks_train_deterministically_and_resume(datasets, tmp_path):
+    """dropout_masks="packed": other draws than torch's (other weights), the same run for
+    the same seed, a killed run resumes to the same weights, the actor keeps its layers."""
+    _, train, validation = datasets
+    data = train.to_tensordict()
+
+    def run(epochs: int, masks: str, run_dir: Path | None = None):
+        torch.manual_seed(3)
+        actor = make_actor("dannet", sensors=S, stats=train.stats)
+        settings = BCSettings(epochs=epochs, batch_size=64, seed=3, dropout_masks=masks)
+        return train_bc(actor, data, validation, settings, run_dir=run_dir, progress=False)
+
+    packed, history = run(4, "packed")
+    again, _ = run(4, "packed")
+    torch_masks, _ = run(4, "bernoulli")
+    weights = packed.module.state_dict()
+    assert all(torch.equal(weights[k], v) for k, v in again.module.state_dict().items())
+    assert not all(torch.equal(weights[k], v) for k, v in torch_masks.module.state_dict().items())
+    assert history[-1]["validation_loss"] < history[0]["validation_loss"]
+    layers = [type(m) for m in packed.module.modules() if "Dropout" in type(m).__name__]
+    assert layers == [torch.nn.Dropout] * 4  # DANNet's four, put back after training
+    run(2, "packed", tmp_path)  # "killed" after 2 epochs
+    resumed, _ = run(4, "packed", tmp_path)
+    assert all(torch.equal(weights[k], v) for k, v in resumed.module.state_dict().items())
+    with pytest.raises(ValueError, match=r"was trained with .*'packed'"):
+        run(4, "bernoulli", tmp_path)
+
+
 def test_resume_refuses_a_run_directory_of_another_model(datasets, tmp_path):
     _, train, validation = datasets
     data = train.to_tensordict()
@@ -182,6 +210,8 @@ def test_impossible_settings_fail():
         BCSettings(learning_rate=-1.0)
     with pytest.raises(ValueError, match="epochs"):
         BCSettings(epochs=0)
+    with pytest.raises(ValueError, match=r"BCSettings.dropout_masks: unknown 'fast'"):
+        BCSettings(dropout_masks="fast")
 
 
 def test_train_bc_recipe_writes_checkpoints_logs_and_plot(datasets, tmp_path):
@@ -283,6 +313,43 @@ def test_gradient_step_matches_the_bcloss_path(datasets):
     assert all(torch.equal(got[k], want[k]) for k in want)
 
 
+def test_masks_drawn_ahead_give_the_same_run(datasets, tmp_path):
+    """draw_ahead=True: torch's masks drawn on a second thread give bit-identical losses,
+    weights and RNG state (DANNet, s' wider than s, a short last batch), with resume."""
+    _, train, validation = datasets
+    data = train.to_tensordict()
+    wider = [*S, "boom_pressure", "bucket_pressure", "pump_angle"]
+    assert data.batch_size[0] % 100 != 0  # batches of 100: a short last batch
+
+    def run(draw_ahead: bool, epochs: int = 3, run_dir: Path | None = None):
+        torch.manual_seed(11)
+        actor = make_actor("dannet", sensors=S, stats=train.stats, attention_sensors=wider)
+        settings = BCSettings(epochs=epochs, batch_size=100, seed=7)
+        actor, history = train_bc(
+            actor, data, validation, settings, run_dir=run_dir, progress=False,
+            draw_ahead=draw_ahead,
+        )  # fmt: skip
+        return actor, history, torch.get_rng_state()
+
+    reference, expected, expected_rng = run(False)
+    actor, history, rng = run(True)
+    assert history == expected
+    assert torch.equal(rng, expected_rng)
+    want, got = reference.module.state_dict(), actor.module.state_dict()
+    assert all(torch.equal(got[k], want[k]) for k in want)
+    layers = [type(m) for m in actor.module.modules() if "Dropout" in type(m).__name__]
+    assert layers == [torch.nn.Dropout] * 4  # put back after training
+    run(True, epochs=2, run_dir=tmp_path)  # "killed" after 2 epochs
+    resumed, history, _ = run(True, run_dir=tmp_path)
+    assert history == expected
+    assert all(torch.equal(resumed.module.state_dict()[k], want[k]) for k in want)
+    with pytest.raises(ValueError, match="draw_ahead draws torch's bernoulli masks"):
+        train_bc(
+            make_actor("dannet", sensors=S, stats=train.stats), data, None,
+            BCSettings(epochs=1, dropout_masks="packed"), progress=False, draw_ahead=True,
+        )  # fmt: skip
+
+
 def test_ensemble_members_equal_separate_runs(datasets):
     _, train, _ = datasets
     data = train.to_tensordict()
@@ -315,13 +382,14 @@ def test_ensemble_with_dropout_learns_and_members_differ(datasets):
     assert len(set(result.validation_loss[:, -1].round(8))) == 3
 
 
-def test_ensemble_passes_train_what_each_group_of_seeds_trains_alone(datasets):
+@pytest.mark.parametrize("masks", ["packed", "bernoulli"])
+def test_ensemble_passes_train_what_each_group_of_seeds_trains_alone(datasets, masks):
     """Members trained members_per_pass at a time: each pass is the ensemble of its
-    seeds alone, bit for bit (DANNet: dropout drawn per pass)."""
+    seeds alone, bit for bit (DANNet: dropout drawn per pass), with either mask draw."""
     _, train, validation = datasets
     data = train.to_tensordict()
     config = make_actor("dannet", sensors=S, stats=train.stats).module.config
-    settings = BCSettings(epochs=1, batch_size=128)
+    settings = BCSettings(epochs=1, batch_size=128, dropout_masks=masks)
 
     def ensemble(seeds, members_per_pass):
         return train_bc_ensemble(
