@@ -301,10 +301,12 @@ def small_run_file(checkpoint: Path, run_dir: Path) -> Path:
         run = _Run(tiny_td3bc_config(checkpoint, run_dir), run_dir, progress=False)
         learner = run.learner
         columns = {}
-        for key in learner.keys:
-            name = learner._leaf_name(key)
-            shape, dtype = learner._leaf_layout(name, 40)
-            columns[key] = (torch.rand(shape) > 0.5) if dtype == torch.bool else torch.rand(shape)
+        for name, leaf in learner._replay_layout().items():
+            if name == "index":  # written by the buffer itself
+                continue
+            shape = (40, *leaf.per_transition)
+            is_flag = leaf.dtype == torch.bool
+            columns[leaf.key] = (torch.rand(shape) > 0.5) if is_flag else torch.rand(shape)
         learner.update(TensorDict(columns, batch_size=[40]))  # fills replay and optimisers
         run.state["frames"], run.state["batches"] = 40, 1
         run.save()
