@@ -35,7 +35,7 @@ Particles, second table (one row per resolution):
     python benchmarks/particle_resolution.py --mouth-grains 6 --condition winter_a
     python benchmarks/particle_resolution.py --solver-iterations 40 --mouth-grains 8
     python benchmarks/particle_resolution.py --contact-timeconst 0.004  # stiffer grains
-    python benchmarks/particle_resolution.py --contact-modulus none  # mass-normalised contacts
+    python benchmarks/particle_resolution.py --contact-modulus 5e7  # material-set stiffness
     python benchmarks/particle_resolution.py --zone-scale 1.3 --mouth-grains 4 6  # larger zone
     python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
     python benchmarks/particle_resolution.py --penetration --seeds 3     # push tests
@@ -249,9 +249,10 @@ def main() -> None:
     parser.add_argument(
         "--contact-modulus",
         type=contact_modulus,
-        default=GRAIN_CONTACT_MODULUS_PA,
-        help="grain contact stiffness per metre of diameter [Pa], or 'none' for MuJoCo's "
-        f"mass-normalised contacts (default {GRAIN_CONTACT_MODULUS_PA:g})",
+        default=None,
+        help="grain contact stiffness per metre of diameter [Pa] (docs/soil_models.md "
+        f"measured {GRAIN_CONTACT_MODULUS_PA:g}), or 'none' (default): MuJoCo's "
+        "mass-normalised contacts",
     )
     parser.add_argument(
         "--zone-scale",

@@ -1,8 +1,8 @@
-"""The particle pile's contact stiffness is set by the material, not by the grain's mass
-(``soil_options={"contact_modulus_pa": ...}``, docs/soil_models.md): a grain pressed by the
-same stress sinks the same fraction of its diameter at every resolution, against the bucket's
-steel and against another grain. MuJoCo's mass-normalised contacts
-(``contact_modulus_pa=None``, the model before) sink the lighter grains of a finer pile deeper.
+"""The particle pile's contact stiffness set by the material, not by the grain's mass
+(``soil_options={"contact_modulus_pa": ...}``, an option; docs/soil_models.md): a grain
+pressed by the same stress sinks the same fraction of its diameter at every resolution,
+against the bucket's steel and against another grain. MuJoCo's mass-normalised contacts
+(``contact_modulus_pa=None``, the default) sink the lighter grains of a finer pile deeper.
 
 The grains are pressed in a one-grain MuJoCo model built from the soil's own contact
 parameters (the pile is not compiled), so the test is small and exact."""
@@ -34,6 +34,7 @@ def _soil_spec(
     mouth_grains: float, condition: str = "summer", **options
 ) -> tuple[ParticleSoil, mujoco.MjSpec]:
     """The soil's grain size, mass and contact parameters, without compiling its pile."""
+    options = {"contact_modulus_pa": GRAIN_CONTACT_MODULUS_PA, **options}
     soil = ParticleSoil(
         CONDITIONS[condition].material,
         PileGeometry(),
@@ -141,7 +142,8 @@ def test_contact_parameters_keep_the_stiffness_whatever_the_friction():
 
 
 def test_the_env_gives_grains_core_walls_and_bucket_the_contact_parameters():
-    env = gym.make("pilerl/PileLoading-v0", soil="particles", soil_options={"mouth_grains": 4.0})
+    options = {"mouth_grains": 4.0, "contact_modulus_pa": GRAIN_CONTACT_MODULUS_PA}
+    env = gym.make("pilerl/PileLoading-v0", soil="particles", soil_options=options)
     soil, model = env.unwrapped.soil, env.unwrapped.model
     _, spec = _soil_spec(COARSE)
     grain = spec.body("particle_0").first_geom()
@@ -159,7 +161,9 @@ def test_the_env_gives_grains_core_walls_and_bucket_the_contact_parameters():
     assert grain.solimp[0] != bucket.solimp[0]
 
 
-def test_mass_normalised_contacts_leave_the_bucket_at_mujocos_defaults():
+def test_mass_normalised_contacts_are_the_default_and_leave_the_bucket_at_mujocos():
+    default = ParticleSoil(CONDITIONS["summer"].material, PileGeometry(), BucketGeometry())
+    assert default.contact_modulus_pa is None
     soil, spec = _soil_spec(COARSE, contact_modulus_pa=None)
     assert soil.grain_stiffness_n_m is None
     np.testing.assert_allclose(spec.geom("bucket_floor").solref, [0.02, 1.0])

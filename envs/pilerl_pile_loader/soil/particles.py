@@ -30,24 +30,23 @@ close-packed face stands at the angle of repose and a collapsing block of them r
 **Contact stiffness.** MuJoCo's soft contacts are normalised by mass: at rest under a
 normal force F a grain of mass m sinks ``(1 - d) tau^2 F / (c m)`` into what it touches
 (``tau`` the time constant of ``solref``, ``d`` the impedance of ``solimp``, ``c`` a factor of
-the pyramidal friction cone: ``contact_parameters``). With one ``tau`` and ``d`` for every
-resolution the lighter grains of a finer pile sink deeper under the same stress, and a
-finer pile compacts instead of flowing. Real grains have a contact stiffness set by the
-material, not by their mass, so each contact here is given a stiffness proportional to
-the grain diameter D (``GRAIN_CONTACT_MODULUS_PA`` x D against steel, half that between two
-grains): a packing's modulus is then the same at every resolution (strain = stress x D /
-stiffness), and a grain pressed by the same stress sinks the same fraction of its
-diameter at every resolution. ``tau`` stays ``CONTACT_TIMECONST_S`` = 2 physics steps
-(0.004 s at 500 Hz, the stiffest reference dynamics MuJoCo integrates stably); the
-impedance ``d`` carries the resolution: ``1 - d = c m / (K tau^2)``. The bucket plates get the
-same stiffness against the grains (they outrank the grains' contact priority, so their
-``solref`` / ``solimp`` govern bucket-grain contacts: with MuJoCo's defaults, 0.02 s, a
-grain pressed by the cutting edge sank up to its radius into the steel at 8 grains across
-the mouth). ``contact_modulus_pa=None`` restores the mass-normalised contacts (grains at
-``tau``, MuJoCo's default impedance, the bucket's defaults). docs/soil_models.md has the
-choice of the value and its effect on fill. The slump test reads the same with the
-mass-normalised contacts at 0.01 s and 0.004 s (a released block of grains settles at 31
-and 33 deg mean angle).
+the pyramidal friction cone: ``contact_parameters``). By default (``contact_modulus_pa=None``)
+the grains, core and walls have ``tau`` = ``CONTACT_TIMECONST_S`` = 2 physics steps (0.004 s
+at 500 Hz, the stiffest MuJoCo integrates stably) and MuJoCo's default impedance, and the
+bucket plates, whose contact priority outranks the grains' so that their ``solref`` /
+``solimp`` govern bucket-grain contacts, keep MuJoCo's defaults (0.02 s): under the same
+stress the lighter grains of a finer pile sink deeper (~1/D^2 of their diameter), into
+each other and into the steel. With 0.01 s grain contacts the fill fell with resolution
+(docs/soil_models.md). The option ``contact_modulus_pa`` gives every grain contact a
+stiffness set by the material and proportional to the grain diameter D instead
+(``contact_modulus_pa`` x D against steel, the core and the walls, half that between two
+grains: a packing's modulus is then the same at every resolution), for the bucket plates
+too: ``tau`` stays, the impedance carries the resolution, ``1 - d = c m / (K tau^2)``
+(below an impedance of 0.7 the time constant gets longer instead). Measured, it made the
+finer piles fill less, not converge: the soft bucket contacts had been letting fine grains
+sink into the cutting edge (docs/soil_models.md), so it is not the default. The slump test
+reads the same with the default contacts at 0.01 s and 0.004 s (a released block of grains
+settles at 31 and 33 deg mean angle).
 
 **Digging zone.** Only the part of the pile the bucket reaches is made of moving grains:
 up to ``PARTICLE_ZONE_DEPTH_M`` behind the toe, ``PARTICLE_ZONE_HALF_WIDTH_M`` either side
@@ -140,8 +139,9 @@ WALL_THICKNESS_M = 0.6  # thickness of the boxes around the zone [m]
 WALL_GROUP = 3  # geom group that MuJoCo does not draw by default
 CONTACT_CONDIM = 3  # sliding friction only: the particles cannot rotate
 CONTACT_TIMECONST_S = 0.004  # stiffest stable contacts: 2 physics steps at 500 Hz [s]
-# a grain's normal contact stiffness against steel per metre of its diameter [N/m per m];
-# a packing of them has a bulk modulus of about 0.47 x this (docs/soil_models.md)
+# a grain's normal contact stiffness against steel per metre of its diameter [N/m per m]
+# for contact_modulus_pa (not the default: docs/soil_models.md); a packing of them has a
+# bulk modulus of about 0.47 x this
 GRAIN_CONTACT_MODULUS_PA = 5e7
 # MuJoCo impedances the grains' contacts use: below 0.7 a grain pressed on a plate with the
 # pyramidal cone bounced off at 500 Hz (a softer contact gets a longer time constant
@@ -194,7 +194,7 @@ class ParticleSoil(SoilModel):
         solver_iterations: int = SOLVER_ITERATIONS,
         fill_measure: str = "count",
         contact_timeconst_s: float = CONTACT_TIMECONST_S,
-        contact_modulus_pa: float | None = GRAIN_CONTACT_MODULUS_PA,
+        contact_modulus_pa: float | None = None,
         zone_scale: float = 1.0,
     ) -> None:
         """Options (``soil_options`` of the env), the resolution:
@@ -212,12 +212,14 @@ class ParticleSoil(SoilModel):
           ``solref``, critically damped); MuJoCo integrates no faster than 2 physics steps
           (0.004 s at 500 Hz). With ``contact_modulus_pa`` it sets how fast a contact
           responds, not how stiff it is.
-        - ``contact_modulus_pa``: a grain's normal contact stiffness against steel per
-          metre of its diameter [N/m per m] (between two grains half that), the same at
-          every resolution (module docstring). ``None``: MuJoCo's mass-normalised contacts
-          (default impedance; under a load F a grain of mass m sinks about
-          (F / m) tau^2, so the lighter grains of a finer pile sink deeper), the bucket's
-          contacts at MuJoCo's defaults: the model before this option.
+        - ``contact_modulus_pa``: ``None`` (default): MuJoCo's mass-normalised contacts
+          (default impedance; under a load F a grain of mass m sinks about (F / m) tau^2,
+          so the lighter grains of a finer pile sink deeper), the bucket's contacts at
+          MuJoCo's defaults. A number: a grain's normal contact stiffness against steel
+          per metre of its diameter [N/m per m] (between two grains half that), the same
+          at every resolution, for the bucket plates too (module docstring;
+          ``GRAIN_CONTACT_MODULUS_PA`` is the value docs/soil_models.md measured: it
+          made the finer piles fill less, not converge).
         - ``zone_scale``: scales the digging zone's extent behind the toe, its half width
           and its active depth (``PARTICLE_ZONE_DEPTH_M``, ``PARTICLE_ZONE_HALF_WIDTH_M``,
           ``ACTIVE_DEPTH_M``); above 1 the grains the bucket pushes meet the zone's walls
