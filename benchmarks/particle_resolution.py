@@ -36,6 +36,7 @@ Particles, second table (one row per resolution):
     python benchmarks/particle_resolution.py --solver-iterations 40 --mouth-grains 8
     python benchmarks/particle_resolution.py --contact-timeconst 0.004  # stiffer grains
     python benchmarks/particle_resolution.py --contact-modulus 5e7  # material-set stiffness
+    python benchmarks/particle_resolution.py --contact-modulus 5e7 --bevelled-edge --seeds 2
     python benchmarks/particle_resolution.py --zone-scale 1.3 --mouth-grains 4 6  # larger zone
     python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
     python benchmarks/particle_resolution.py --penetration --seeds 3     # push tests
@@ -255,6 +256,9 @@ def main() -> None:
         "mass-normalised contacts",
     )
     parser.add_argument(
+        "--bevelled-edge", action="store_true", help="a chamfer on the bucket's cutting edge"
+    )
+    parser.add_argument(
         "--zone-scale",
         type=float,
         default=None,
@@ -302,7 +306,8 @@ def main() -> None:
     modulus = "mass-normalised" if args.contact_modulus is None else f"{args.contact_modulus:g} Pa"
     print(
         f"\nparticles, {iterations} CG iterations per physics step, contact time constant "
-        f"{timeconst} s, contact modulus {modulus}, zone scale {args.zone_scale or 1.0}, "
+        f"{timeconst} s, contact modulus {modulus}, bevelled edge {args.bevelled_edge}, "
+        f"zone scale {args.zone_scale or 1.0}, "
         f"the same {n} starts"
     )
     header = (
@@ -313,7 +318,11 @@ def main() -> None:
     print(header)
     print("-" * len(header))
     for grains in args.mouth_grains:
-        options = {"mouth_grains": grains, "contact_modulus_pa": args.contact_modulus}
+        options = {
+            "mouth_grains": grains,
+            "contact_modulus_pa": args.contact_modulus,
+            "bevelled_edge": args.bevelled_edge,
+        }
         if args.solver_iterations is not None:
             options["solver_iterations"] = args.solver_iterations
         if args.contact_timeconst is not None:

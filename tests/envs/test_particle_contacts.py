@@ -17,6 +17,7 @@ from pilerl_pile_loader.conditions import CONDITIONS
 from pilerl_pile_loader.machine import load_machine_spec
 from pilerl_pile_loader.soil import BucketGeometry, PileGeometry
 from pilerl_pile_loader.soil.particles import (
+    BEVEL_ANGLE_DEG,
     CONE,
     CONTACT_IMPEDANCE_RANGE,
     GRAIN_CONTACT_MODULUS_PA,
@@ -181,3 +182,43 @@ def test_impossible_contact_modulus_fails_naming_the_option(bad):
 def test_a_stiffness_the_solver_cannot_hold_fails_naming_the_option():
     with pytest.raises(ValueError, match="contact_modulus_pa"):
         _soil_spec(FINE, contact_modulus_pa=5e9)  # impedance above 0.999 for 8 cm grains
+
+
+# ---- the bevelled cutting edge (soil_options={"bevelled_edge": True})
+
+
+def test_bevelled_edge_is_a_steel_ramp_over_the_floor_plates_front_face():
+    soil, spec = _soil_spec(COARSE, bevelled_edge=True)
+    bevel, floor = spec.geom("bucket_bevel"), spec.geom("bucket_floor")
+    for key in ("priority", "friction", "solref", "solimp", "contype", "conaffinity"):
+        np.testing.assert_allclose(getattr(bevel, key), getattr(floor, key))
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    g = model.geom("bucket_bevel").id
+    rotation = data.geom_xmat[g].reshape(3, 3)
+    # its top face faces forward and up, BEVEL_ANGLE_DEG off the vertical (a level bucket)
+    normal = rotation[:, 2]
+    assert np.degrees(np.arccos(normal[2])) == pytest.approx(BEVEL_ANGLE_DEG, abs=1e-6)
+    assert normal[0] > 0 and abs(normal[1]) < 1e-9
+    # the ramp's top face starts ahead of the floor plate, at its underside, and rises over
+    # its front face (all but the top 3 mm of the 2.4 cm face lie under the ramp)
+    f = model.geom("bucket_floor").id
+    floor_rotation = data.geom_xmat[f].reshape(3, 3)
+    half = model.geom_size[f]
+    front_bottom = data.geom_xpos[f] + floor_rotation @ (half * [1, 0, -1])
+    front_top = data.geom_xpos[f] + floor_rotation @ (half * [1, 0, 1])
+    top_centre = data.geom_xpos[g] + normal * model.geom_size[g][2]
+    assert (front_bottom - top_centre) @ normal < 0
+    below_top = front_top - 0.003 * floor_rotation[:, 2]
+    assert (below_top - top_centre) @ normal < 0
+    tip = top_centre + rotation[:, 0] * model.geom_size[g][0]
+    ahead = (tip - front_bottom) @ floor_rotation[:, 0]
+    assert ahead == pytest.approx(2 * half[2] / np.tan(np.radians(BEVEL_ANGLE_DEG)), abs=0.01)
+    assert not _soil_spec(COARSE)[1].geom("bucket_bevel")  # only with the option
+
+
+@pytest.mark.parametrize("bad", [1, "yes", None])
+def test_impossible_bevelled_edge_fails_naming_the_option(bad):
+    with pytest.raises(ValueError, match="bevelled_edge"):
+        gym.make("pilerl/PileLoading-v0", soil="particles", soil_options={"bevelled_edge": bad})

@@ -151,6 +151,11 @@ SOLIMP_WIDTH_M = 0.001  # MuJoCo's default (unused: the impedance is flat, d0 = 
 PARTICLE_PRIORITY = 2  # > ground's 1: particle friction governs particle-ground contacts
 BUCKET_PRIORITY = 3  # > particles': steel friction tan(delta) governs bucket contacts
 BUCKET_GEOMS = ("bucket_floor", "bucket_back", "bucket_top", "bucket_side_l", "bucket_side_r")
+# bevelled_edge option: a steel strip on the floor plate's front whose top face rises at
+# this angle from ahead of the edge, at the plate's underside, back to the plate's top
+BEVEL_ANGLE_DEG = 30.0
+BEVEL_HALF_THICKNESS_M = 0.005
+BEVEL_MASS_KG = 0.5
 # ---- solver (global options; see module docstring)
 SOLVER = mujoco.mjtSolver.mjSOL_CG
 CONE = mujoco.mjtCone.mjCONE_PYRAMIDAL
@@ -195,6 +200,7 @@ class ParticleSoil(SoilModel):
         fill_measure: str = "count",
         contact_timeconst_s: float = CONTACT_TIMECONST_S,
         contact_modulus_pa: float | None = None,
+        bevelled_edge: bool = False,
         zone_scale: float = 1.0,
     ) -> None:
         """Options (``soil_options`` of the env), the resolution:
@@ -220,6 +226,11 @@ class ParticleSoil(SoilModel):
           at every resolution, for the bucket plates too (module docstring;
           ``GRAIN_CONTACT_MODULUS_PA`` is the value docs/soil_models.md measured: it
           made the finer piles fill less, not converge).
+        - ``bevelled_edge``: a ``BEVEL_ANGLE_DEG`` chamfer on the front of the bucket's
+          floor plate (``bucket_bevel``, steel like the plates): the blunt 2.4 cm plate
+          face meets a small grain near its equator and pushes it ahead; the chamfer lifts
+          it over the edge, as a real bevelled cutting edge does (docs/soil_models.md).
+          The edge moves ``0.024 / tan(BEVEL_ANGLE_DEG)`` m (4 cm) forward.
         - ``zone_scale``: scales the digging zone's extent behind the toe, its half width
           and its active depth (``PARTICLE_ZONE_DEPTH_M``, ``PARTICLE_ZONE_HALF_WIDTH_M``,
           ``ACTIVE_DEPTH_M``); above 1 the grains the bucket pushes meet the zone's walls
@@ -265,6 +276,11 @@ class ParticleSoil(SoilModel):
                 "ParticleSoil.contact_modulus_pa: must be None or a number in [1e5, 1e10] Pa, "
                 f"got {contact_modulus_pa!r}"
             )
+        if not isinstance(bevelled_edge, bool):
+            raise ValueError(
+                f"ParticleSoil.bevelled_edge: must be true or false, got {bevelled_edge!r}"
+            )
+        self.bevelled_edge = bevelled_edge
         if isinstance(zone_scale, bool) or not (
             isinstance(zone_scale, int | float) and 0.5 <= zone_scale <= 2.0
         ):
@@ -311,6 +327,10 @@ class ParticleSoil(SoilModel):
         friction = PARTICLE_FRICTION_RATIO * math.tan(self.repose_angle_rad)
         tool_friction = math.tan(math.radians(self.material.tool_friction_angle_deg))
         grain_contact, bucket_contact = self._contact_parameters(friction, tool_friction)
+        bucket_geoms = BUCKET_GEOMS
+        if self.bevelled_edge:
+            _add_bevel(spec)
+            bucket_geoms = (*BUCKET_GEOMS, "bucket_bevel")
         for i, position in enumerate(self.lattice):
             body = spec.worldbody.add_body(name=f"particle_{i}", pos=position.tolist())
             for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
@@ -344,7 +364,7 @@ class ParticleSoil(SoilModel):
                 **grain_contact,
             )
 
-        for name in BUCKET_GEOMS:
+        for name in bucket_geoms:
             geom = spec.geom(name)
             if geom is None:
                 raise ValueError(f"ParticleSoil: the machine model has no bucket geom {name!r}")
@@ -753,6 +773,39 @@ def contact_parameters(
             "constant: choose a lower contact_modulus_pa or a coarser pile"
         )
     return timeconst_s, impedance
+
+
+def _add_bevel(spec: mujoco.MjSpec) -> None:
+    """A steel strip on the front of the bucket's floor plate (``bucket_bevel``): its top face
+    rises at ``BEVEL_ANGLE_DEG`` from the plate's underside, 4 cm ahead of the plate's front
+    face, to the plate's top 5 mm behind it, so that the face lies under it but for its top
+    3 mm. Contact parameters and friction are set with the other bucket plates'."""
+    floor = spec.geom("bucket_floor")
+    if floor is None:
+        raise ValueError("ParticleSoil: the machine model has no bucket geom 'bucket_floor'")
+    alpha = math.radians(BEVEL_ANGLE_DEG)
+    front_x = floor.pos[0] + floor.size[0]
+    bottom_z, top_z = floor.pos[2] - floor.size[2], floor.pos[2] + floor.size[2]
+    tip = (front_x + (top_z - bottom_z) / math.tan(alpha), bottom_z)
+    back = (front_x - BEVEL_HALF_THICKNESS_M, top_z)
+    length = math.hypot(tip[0] - back[0], tip[1] - back[1]) + 0.01
+    mid_x, mid_z = (tip[0] + back[0]) / 2, (tip[1] + back[1]) / 2
+    spec.body("bucket").add_geom(
+        name="bucket_bevel",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        pos=[
+            mid_x - BEVEL_HALF_THICKNESS_M * math.sin(alpha),
+            0.0,
+            mid_z - BEVEL_HALF_THICKNESS_M * math.cos(alpha),
+        ],
+        size=[length / 2, floor.size[1], BEVEL_HALF_THICKNESS_M],
+        quat=[math.cos(alpha / 2), 0.0, math.sin(alpha / 2), 0.0],
+        mass=BEVEL_MASS_KG,
+        contype=floor.contype,
+        conaffinity=floor.conaffinity,
+        condim=floor.condim,
+        material="steel",
+    )
 
 
 def _refresh_static_bodies(model: mujoco.MjModel, data: mujoco.MjData) -> None:
