@@ -35,6 +35,8 @@ Particles, second table (one row per resolution):
     python benchmarks/particle_resolution.py --mouth-grains 6 --condition winter_a
     python benchmarks/particle_resolution.py --solver-iterations 40 --mouth-grains 8
     python benchmarks/particle_resolution.py --contact-timeconst 0.004  # stiffer grains
+    python benchmarks/particle_resolution.py --contact-modulus 5e7  # material-set stiffness
+    python benchmarks/particle_resolution.py --contact-modulus 5e7 --bevelled-edge --seeds 2
     python benchmarks/particle_resolution.py --zone-scale 1.3 --mouth-grains 4 6  # larger zone
     python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
     python benchmarks/particle_resolution.py --penetration --seeds 3     # push tests
@@ -63,6 +65,7 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 from pilerl_pile_loader.soil.particles import (  # noqa: E402
     CONTACT_TIMECONST_S,
+    GRAIN_CONTACT_MODULUS_PA,
     SOLVER_ITERATIONS,
 )
 
@@ -225,6 +228,11 @@ def print_intake_table(seeds: list[int]) -> None:
         print(f"{condition:>10} {rows['fp']['swept']:5.3f} {cells}", flush=True)
 
 
+def contact_modulus(text: str) -> float | None:
+    """``--contact-modulus``: a number [Pa] or ``none``."""
+    return None if text.lower() == "none" else float(text)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--mouth-grains", type=float, nargs="+", default=[4.0, 6.0, 8.0])
@@ -238,6 +246,17 @@ def main() -> None:
         type=float,
         default=None,
         help="grain contact time constant [s] (default: the soil's)",
+    )
+    parser.add_argument(
+        "--contact-modulus",
+        type=contact_modulus,
+        default=None,
+        help="grain contact stiffness per metre of diameter [Pa] (docs/soil_models.md "
+        f"measured {GRAIN_CONTACT_MODULUS_PA:g}), or 'none' (default): MuJoCo's "
+        "mass-normalised contacts",
+    )
+    parser.add_argument(
+        "--bevelled-edge", action="store_true", help="a chamfer on the bucket's cutting edge"
     )
     parser.add_argument(
         "--zone-scale",
@@ -284,9 +303,12 @@ def main() -> None:
 
     iterations = args.solver_iterations or SOLVER_ITERATIONS
     timeconst = args.contact_timeconst or CONTACT_TIMECONST_S
+    modulus = "mass-normalised" if args.contact_modulus is None else f"{args.contact_modulus:g} Pa"
     print(
         f"\nparticles, {iterations} CG iterations per physics step, contact time constant "
-        f"{timeconst} s, zone scale {args.zone_scale or 1.0}, the same {n} starts"
+        f"{timeconst} s, contact modulus {modulus}, bevelled edge {args.bevelled_edge}, "
+        f"zone scale {args.zone_scale or 1.0}, "
+        f"the same {n} starts"
     )
     header = (
         f"{'mouth/d':>7} {'grain mm':>8} {'grains':>9} {'fill p':>6} {'vol p':>5} "
@@ -296,7 +318,11 @@ def main() -> None:
     print(header)
     print("-" * len(header))
     for grains in args.mouth_grains:
-        options = {"mouth_grains": grains}
+        options = {
+            "mouth_grains": grains,
+            "contact_modulus_pa": args.contact_modulus,
+            "bevelled_edge": args.bevelled_edge,
+        }
         if args.solver_iterations is not None:
             options["solver_iterations"] = args.solver_iterations
         if args.contact_timeconst is not None:

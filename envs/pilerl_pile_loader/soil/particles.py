@@ -27,13 +27,26 @@ spheres in a packing are stronger than their contact friction; with this ratio t
 close-packed face stands at the angle of repose and a collapsing block of them runs out to
 ~33 deg for dry gravel's 38 deg (slump test).
 
-**Contact stiffness.** A grain of mass m pressed by a force F sinks about (F / m) tau^2
-into its neighbours (MuJoCo's soft contacts, time constant tau). Gravel grains barely
-overlap, so the contacts are as stiff as MuJoCo integrates stably: ``CONTACT_TIMECONST_S``
-= 2 physics steps (0.004 s at 500 Hz). With 0.01 s the bucket's push sank the grains
-centimetres into each other, more the lighter (finer) the grains, and the pile jammed:
-fill fell with resolution (docs/soil_models.md). The slump test reads the same at both
-(a released block of grains settles at 31 deg mean angle with 0.01 s, 33 deg with 0.004 s).
+**Contact stiffness.** MuJoCo's soft contacts are normalised by mass: at rest under a
+normal force F a grain of mass m sinks ``(1 - d) tau^2 F / (c m)`` into what it touches
+(``tau`` the time constant of ``solref``, ``d`` the impedance of ``solimp``, ``c`` a factor of
+the pyramidal friction cone: ``contact_parameters``). By default (``contact_modulus_pa=None``)
+the grains, core and walls have ``tau`` = ``CONTACT_TIMECONST_S`` = 2 physics steps (0.004 s
+at 500 Hz, the stiffest MuJoCo integrates stably) and MuJoCo's default impedance, and the
+bucket plates, whose contact priority outranks the grains' so that their ``solref`` /
+``solimp`` govern bucket-grain contacts, keep MuJoCo's defaults (0.02 s): under the same
+stress the lighter grains of a finer pile sink deeper (~1/D^2 of their diameter), into
+each other and into the steel. With 0.01 s grain contacts the fill fell with resolution
+(docs/soil_models.md). The option ``contact_modulus_pa`` gives every grain contact a
+stiffness set by the material and proportional to the grain diameter D instead
+(``contact_modulus_pa`` x D against steel, the core and the walls, half that between two
+grains: a packing's modulus is then the same at every resolution), for the bucket plates
+too: ``tau`` stays, the impedance carries the resolution, ``1 - d = c m / (K tau^2)``
+(below an impedance of 0.7 the time constant gets longer instead). Measured, it made the
+finer piles fill less, not converge: the soft bucket contacts had been letting fine grains
+sink into the cutting edge (docs/soil_models.md), so it is not the default. The slump test
+reads the same with the default contacts at 0.01 s and 0.004 s (a released block of grains
+settles at 31 and 33 deg mean angle).
 
 **Digging zone.** Only the part of the pile the bucket reaches is made of moving grains:
 up to ``PARTICLE_ZONE_DEPTH_M`` behind the toe, ``PARTICLE_ZONE_HALF_WIDTH_M`` either side
@@ -126,9 +139,23 @@ WALL_THICKNESS_M = 0.6  # thickness of the boxes around the zone [m]
 WALL_GROUP = 3  # geom group that MuJoCo does not draw by default
 CONTACT_CONDIM = 3  # sliding friction only: the particles cannot rotate
 CONTACT_TIMECONST_S = 0.004  # stiffest stable contacts: 2 physics steps at 500 Hz [s]
+# a grain's normal contact stiffness against steel per metre of its diameter [N/m per m]
+# for contact_modulus_pa (not the default: docs/soil_models.md); a packing of them has a
+# bulk modulus of about 0.47 x this
+GRAIN_CONTACT_MODULUS_PA = 5e7
+# MuJoCo impedances the grains' contacts use: below 0.7 a grain pressed on a plate with the
+# pyramidal cone bounced off at 500 Hz (a softer contact gets a longer time constant
+# instead); nearer to 1 the solver hardly converges (refused)
+CONTACT_IMPEDANCE_RANGE = (0.7, 0.999)
+SOLIMP_WIDTH_M = 0.001  # MuJoCo's default (unused: the impedance is flat, d0 = dmax)
 PARTICLE_PRIORITY = 2  # > ground's 1: particle friction governs particle-ground contacts
 BUCKET_PRIORITY = 3  # > particles': steel friction tan(delta) governs bucket contacts
 BUCKET_GEOMS = ("bucket_floor", "bucket_back", "bucket_top", "bucket_side_l", "bucket_side_r")
+# bevelled_edge option: a steel strip on the floor plate's front whose top face rises at
+# this angle from ahead of the edge, at the plate's underside, back to the plate's top
+BEVEL_ANGLE_DEG = 30.0
+BEVEL_HALF_THICKNESS_M = 0.005
+BEVEL_MASS_KG = 0.5
 # ---- solver (global options; see module docstring)
 SOLVER = mujoco.mjtSolver.mjSOL_CG
 CONE = mujoco.mjtCone.mjCONE_PYRAMIDAL
@@ -172,6 +199,8 @@ class ParticleSoil(SoilModel):
         solver_iterations: int = SOLVER_ITERATIONS,
         fill_measure: str = "count",
         contact_timeconst_s: float = CONTACT_TIMECONST_S,
+        contact_modulus_pa: float | None = None,
+        bevelled_edge: bool = False,
         zone_scale: float = 1.0,
     ) -> None:
         """Options (``soil_options`` of the env), the resolution:
@@ -186,10 +215,22 @@ class ParticleSoil(SoilModel):
         - ``fill_measure``: ``"count"`` (default, the load's mass) or ``"volume"`` (the
           load's bulk volume under its surface; module docstring).
         - ``contact_timeconst_s``: the grains' contact time constant [s] (MuJoCo's
-          ``solref``, critically damped). Under a load F a grain of mass m overlaps its
-          neighbours by about (F / m) * tau^2, so the lighter grains of a finer pile sink
-          deeper into each other under the same bucket force; MuJoCo integrates no stiffer
-          than 2 physics steps (0.004 s at 500 Hz). docs/soil_models.md has its effect.
+          ``solref``, critically damped); MuJoCo integrates no faster than 2 physics steps
+          (0.004 s at 500 Hz). With ``contact_modulus_pa`` it sets how fast a contact
+          responds, not how stiff it is.
+        - ``contact_modulus_pa``: ``None`` (default): MuJoCo's mass-normalised contacts
+          (default impedance; under a load F a grain of mass m sinks about (F / m) tau^2,
+          so the lighter grains of a finer pile sink deeper), the bucket's contacts at
+          MuJoCo's defaults. A number: a grain's normal contact stiffness against steel
+          per metre of its diameter [N/m per m] (between two grains half that), the same
+          at every resolution, for the bucket plates too (module docstring;
+          ``GRAIN_CONTACT_MODULUS_PA`` is the value docs/soil_models.md measured: it
+          made the finer piles fill less, not converge).
+        - ``bevelled_edge``: a ``BEVEL_ANGLE_DEG`` chamfer on the front of the bucket's
+          floor plate (``bucket_bevel``, steel like the plates): the blunt 2.4 cm plate
+          face meets a small grain near its equator and pushes it ahead; the chamfer lifts
+          it over the edge, as a real bevelled cutting edge does (docs/soil_models.md).
+          The edge moves ``0.024 / tan(BEVEL_ANGLE_DEG)`` m (4 cm) forward.
         - ``zone_scale``: scales the digging zone's extent behind the toe, its half width
           and its active depth (``PARTICLE_ZONE_DEPTH_M``, ``PARTICLE_ZONE_HALF_WIDTH_M``,
           ``ACTIVE_DEPTH_M``); above 1 the grains the bucket pushes meet the zone's walls
@@ -225,6 +266,21 @@ class ParticleSoil(SoilModel):
                 "ParticleSoil.contact_timeconst_s: must be a number in [0.002, 0.1] s, "
                 f"got {contact_timeconst_s!r}"
             )
+        if contact_modulus_pa is not None and (
+            isinstance(contact_modulus_pa, bool)
+            or not (
+                isinstance(contact_modulus_pa, int | float) and 1e5 <= contact_modulus_pa <= 1e10
+            )
+        ):
+            raise ValueError(
+                "ParticleSoil.contact_modulus_pa: must be None or a number in [1e5, 1e10] Pa, "
+                f"got {contact_modulus_pa!r}"
+            )
+        if not isinstance(bevelled_edge, bool):
+            raise ValueError(
+                f"ParticleSoil.bevelled_edge: must be true or false, got {bevelled_edge!r}"
+            )
+        self.bevelled_edge = bevelled_edge
         if isinstance(zone_scale, bool) or not (
             isinstance(zone_scale, int | float) and 0.5 <= zone_scale <= 2.0
         ):
@@ -235,6 +291,7 @@ class ParticleSoil(SoilModel):
         self.active_depth_m = ACTIVE_DEPTH_M * self.zone_scale
         self.fill_measure = fill_measure
         self.contact_timeconst_s = float(contact_timeconst_s)
+        self.contact_modulus_pa = None if contact_modulus_pa is None else float(contact_modulus_pa)
         self.max_particles = max_particles
         self.mouth_grains = float(mouth_grains)
         self.solver_iterations = solver_iterations
@@ -268,6 +325,12 @@ class ParticleSoil(SoilModel):
         self.packed_bucket_fill = len(self.packed_bucket_sites()) * self.particle_mass_kg / rated_kg
 
         friction = PARTICLE_FRICTION_RATIO * math.tan(self.repose_angle_rad)
+        tool_friction = math.tan(math.radians(self.material.tool_friction_angle_deg))
+        grain_contact, bucket_contact = self._contact_parameters(friction, tool_friction)
+        bucket_geoms = BUCKET_GEOMS
+        if self.bevelled_edge:
+            _add_bevel(spec)
+            bucket_geoms = (*BUCKET_GEOMS, "bucket_bevel")
         for i, position in enumerate(self.lattice):
             body = spec.worldbody.add_body(name=f"particle_{i}", pos=position.tolist())
             for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
@@ -281,10 +344,10 @@ class ParticleSoil(SoilModel):
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
                 friction=[friction, 0.0, 0.0],
-                solref=[self.contact_timeconst_s, 1.0],
                 rgba=list(PARTICLE_RGBA),
+                **grain_contact,
             )
-        walls = self._add_walls(spec, friction)
+        walls = self._add_walls(spec, friction, grain_contact)
         for i, position in enumerate(self.core):
             walls.add_geom(
                 name=f"core_{i}",
@@ -296,18 +359,19 @@ class ParticleSoil(SoilModel):
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
                 friction=[friction, 0.0, 0.0],
-                solref=[self.contact_timeconst_s, 1.0],
                 group=WALL_GROUP,
                 rgba=list(PARTICLE_RGBA),
+                **grain_contact,
             )
 
-        tool_friction = math.tan(math.radians(self.material.tool_friction_angle_deg))
-        for name in BUCKET_GEOMS:
+        for name in bucket_geoms:
             geom = spec.geom(name)
             if geom is None:
                 raise ValueError(f"ParticleSoil: the machine model has no bucket geom {name!r}")
             geom.priority = BUCKET_PRIORITY
             geom.friction[0] = tool_friction
+            for key, value in bucket_contact.items():
+                setattr(geom, key, value)
 
         spec.memory = max(spec.memory, ARENA_BYTES_PER_GRAIN * len(sites))
         option = spec.option
@@ -319,6 +383,25 @@ class ParticleSoil(SoilModel):
         option.noslip_iterations = 0
         option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
         option.sleep_tolerance = SLEEP_TOLERANCE_M_S
+
+    def _contact_parameters(
+        self, friction: float, tool_friction: float
+    ) -> tuple[dict[str, list[float]], dict[str, list[float]]]:
+        """MuJoCo ``solref`` / ``solimp`` of the grains (also the static core and walls) and
+        of the bucket plates (they govern bucket-grain contacts), from the grain's mass and
+        diameter (module docstring); sets ``grain_stiffness_n_m`` (against steel, None for
+        the mass-normalised contacts)."""
+        if self.contact_modulus_pa is None:
+            self.grain_stiffness_n_m = None
+            return {"solref": [self.contact_timeconst_s, 1.0]}, {}
+        self.grain_stiffness_n_m = self.contact_modulus_pa * 2.0 * self.radius_m
+        contacts = []
+        for mu in (friction, tool_friction):
+            tau, d = contact_parameters(
+                self.particle_mass_kg, self.grain_stiffness_n_m, mu, self.contact_timeconst_s
+            )
+            contacts.append({"solref": [tau, 1.0], "solimp": [d, d, SOLIMP_WIDTH_M, 0.5, 2.0]})
+        return contacts[0], contacts[1]
 
     def _depth_below_surface(self, points: np.ndarray) -> np.ndarray:
         """Vertical depth [m] of points (N, 3) below the undisturbed pile surface."""
@@ -394,7 +477,9 @@ class ParticleSoil(SoilModel):
         keep = (np.abs(y) <= half_width - r) & _inside_polygon(x, z, polygon)
         return np.stack([x[keep], y[keep], z[keep]], axis=1)
 
-    def _add_walls(self, spec: mujoco.MjSpec, friction: float) -> mujoco.MjsBody:
+    def _add_walls(
+        self, spec: mujoco.MjSpec, friction: float, contact: dict[str, list[float]]
+    ) -> mujoco.MjsBody:
         """The rigid rest of the pile: a face slab and a crest box on each side of the zone and
         a wall behind it, up to the pile surface.
 
@@ -450,9 +535,9 @@ class ParticleSoil(SoilModel):
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
                 friction=[friction, 0.0, 0.0],
-                solref=[self.contact_timeconst_s, 1.0],
                 group=WALL_GROUP,
                 rgba=[*PARTICLE_RGBA[:3], 0.3],
+                **contact,
             )
         return walls
 
@@ -655,6 +740,72 @@ class ParticleSoil(SoilModel):
 
     def cutting_depth_m(self) -> float:
         return self._depth_m
+
+
+def contact_parameters(
+    mass_kg: float, stiffness_n_m: float, friction: float, timeconst_s: float
+) -> tuple[float, float]:
+    """MuJoCo's time constant [s] and impedance d (``solref`` (tau, 1), ``solimp`` with
+    d0 = dmax = d) that give a body of ``mass_kg`` pressed against a fixed one the static
+    normal stiffness ``stiffness_n_m`` [N/m], with this module's friction cone (pyramidal,
+    condim 3, sliding ``friction``). tau is ``timeconst_s`` unless even the softest
+    impedance (``CONTACT_IMPEDANCE_RANGE[0]``) is too stiff at it; then it is longer.
+
+    MuJoCo solves contacts in acceleration: at rest under a normal force F the penetration
+    is (1 - d) tau^2 F / (c m), where c = 2 / (mu^2 (1 + mu^2)) for the pyramidal cone
+    (MuJoCo's mj_makeImpedance scales the regulariser of its four edges by 2 mu^2 to match
+    the elliptic cone's friction; c = 1 for an elliptic cone;
+    tests/envs/test_particle_contacts.py measures it), so K = c m / ((1 - d) tau^2). Two
+    grains of mass m in contact have half the stiffness (MuJoCo adds their inverse masses).
+    Raises ValueError where the stiffness needs an impedance above
+    ``CONTACT_IMPEDANCE_RANGE``."""
+    if not friction > 0.0:
+        raise ValueError(f"contact_parameters: friction must be > 0, got {friction!r}")
+    low, high = CONTACT_IMPEDANCE_RANGE
+    compliance = 2.0 / (friction**2 * (1.0 + friction**2)) * mass_kg / stiffness_n_m  # [s^2]
+    timeconst_s = max(timeconst_s, math.sqrt(compliance / (1.0 - low)))
+    impedance = 1.0 - compliance / timeconst_s**2
+    if impedance > high:
+        raise ValueError(
+            f"ParticleSoil.contact_modulus_pa: a grain of {mass_kg:.3g} kg (friction "
+            f"{friction:.2f}) needs a MuJoCo impedance of {impedance:.4f}, above {high}, for "
+            f"a contact stiffness of {stiffness_n_m:.3g} N/m with a {timeconst_s} s time "
+            "constant: choose a lower contact_modulus_pa or a coarser pile"
+        )
+    return timeconst_s, impedance
+
+
+def _add_bevel(spec: mujoco.MjSpec) -> None:
+    """A steel strip on the front of the bucket's floor plate (``bucket_bevel``): its top face
+    rises at ``BEVEL_ANGLE_DEG`` from the plate's underside, 4 cm ahead of the plate's front
+    face, to the plate's top 5 mm behind it, so that the face lies under it but for its top
+    3 mm. Contact parameters and friction are set with the other bucket plates'."""
+    floor = spec.geom("bucket_floor")
+    if floor is None:
+        raise ValueError("ParticleSoil: the machine model has no bucket geom 'bucket_floor'")
+    alpha = math.radians(BEVEL_ANGLE_DEG)
+    front_x = floor.pos[0] + floor.size[0]
+    bottom_z, top_z = floor.pos[2] - floor.size[2], floor.pos[2] + floor.size[2]
+    tip = (front_x + (top_z - bottom_z) / math.tan(alpha), bottom_z)
+    back = (front_x - BEVEL_HALF_THICKNESS_M, top_z)
+    length = math.hypot(tip[0] - back[0], tip[1] - back[1]) + 0.01
+    mid_x, mid_z = (tip[0] + back[0]) / 2, (tip[1] + back[1]) / 2
+    spec.body("bucket").add_geom(
+        name="bucket_bevel",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        pos=[
+            mid_x - BEVEL_HALF_THICKNESS_M * math.sin(alpha),
+            0.0,
+            mid_z - BEVEL_HALF_THICKNESS_M * math.cos(alpha),
+        ],
+        size=[length / 2, floor.size[1], BEVEL_HALF_THICKNESS_M],
+        quat=[math.cos(alpha / 2), 0.0, math.sin(alpha / 2), 0.0],
+        mass=BEVEL_MASS_KG,
+        contype=floor.contype,
+        conaffinity=floor.conaffinity,
+        condim=floor.condim,
+        material="steel",
+    )
 
 
 def _refresh_static_bodies(model: mujoco.MjModel, data: mujoco.MjData) -> None:
