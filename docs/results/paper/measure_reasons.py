@@ -1,0 +1,114 @@
+"""Read-only measurements behind README.md's "Why, as far as measured".
+
+Run from the repository root after the Exp. 1-3 sweeps:
+    python docs/results/paper/measure_reasons.py
+It prints, per cell (controller, inputs, data, summer or winter A-D pooled): episodes,
+successes, median fill, median first boom lift and penetration time (s), median episode
+length (s), finished scoops, median peak wheel slip (m/s) and the failure modes; then
+paired sign tests over the same (training seed, condition, start) and the demonstrations'
+success by operator style. Writes nothing.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import statistics
+from collections import Counter
+from math import comb
+from pathlib import Path
+
+SWEEPS = ["exp1_summer_to_winter", "exp2_data_and_pt", "exp3_attention"]
+Cell = tuple[str, str, str]
+
+
+def cell_of(settings: dict) -> Cell:
+    """(controller, inputs, dataset) of one job's saved settings."""
+    inputs = "s" + ("+pt" if "telescope_pressure" in settings["sensors.s"] else "")
+    inputs += "+s'" if settings["sensors.s_prime"] else ""
+    data = "D_I" if "d_i_" in settings["train_data"] else "D_II"
+    return settings["policy.name"], inputs, data
+
+
+def load_episodes(root: Path) -> dict[Cell, dict[tuple, dict]]:
+    """Every evaluated episode per cell, keyed by (training seed, condition, episode)."""
+    cells: dict[Cell, dict[tuple, dict]] = {}
+    for sweep in SWEEPS:
+        for run in sorted((root / "multirun" / sweep).glob("*/run.json")):
+            settings = json.loads(run.read_text())["settings"]
+            episodes = cells.setdefault(cell_of(settings), {})
+            with open(run.parent / "evaluation" / "episodes.csv") as f:
+                for row in csv.DictReader(f):
+                    episodes[(settings["seed"], row["condition"], row["episode"])] = row
+    return cells
+
+
+def median(rows: list[dict], column: str) -> float:
+    values = [float(r[column]) for r in rows if r[column] not in ("", "nan")]
+    return statistics.median(values) if values else float("nan")
+
+
+def sign_test_p(a: int, b: int) -> float:
+    """Two-sided exact sign test on a and b discordant pairs."""
+    n = a + b
+    return min(1.0, 2 * sum(comb(n, i) for i in range(min(a, b) + 1)) / 2**n) if n else 1.0
+
+
+def main() -> None:
+    root = Path.cwd()
+    cells = load_episodes(root)
+    print("cell | test | n | ok | fill | lift s | pen s | len s | done | slip | failures")
+    for cell, episodes in sorted(cells.items()):
+        for test in ("summer", "winter"):
+            rows = [r for k, r in episodes.items() if (k[1] == "summer") == (test == "summer")]
+            if not rows:
+                continue
+            modes = Counter(r["failure_mode"] for r in rows if r["failure_mode"] != "success")
+            print(
+                " ".join(cell), test, len(rows), sum(r["success"] == "True" for r in rows),
+                f"{median(rows, 'fill_fraction'):.2f} {median(rows, 'first_lift_s'):.1f}",
+                f"{median(rows, 'penetration_s'):.1f} {median(rows, 'elapsed_s'):.1f}",
+                sum(r["scoop_finished"] == "True" for r in rows),
+                f"{median(rows, 'max_wheel_slip_m_s'):.2f}", dict(modes),
+            )  # fmt: skip
+    pairs = [
+        (("nnetv2", "s+pt", "D_II"), ("nnetv2", "s", "D_II")),
+        (("rf", "s+pt", "D_II"), ("rf", "s", "D_II")),
+        (("rf", "s+pt", "D_I"), ("rf", "s", "D_I")),
+        (("dannet", "s+pt+s'", "D_II"), ("nnetv2", "s+pt", "D_II")),
+        (("annet", "s+pt+s'", "D_II"), ("nnetv2", "s+pt", "D_II")),
+        (("dannet", "s+pt+s'", "D_I"), ("nnetv2", "s+pt", "D_I")),
+        (("annet", "s+pt", "D_II"), ("annet", "s", "D_II")),
+        (("dannet", "s+pt", "D_II"), ("dannet", "s", "D_II")),
+    ]
+    print("\npaired over (training seed, winter day, start): A vs B")
+    for a_cell, b_cell in pairs:
+        a, b = cells[a_cell], cells[b_cell]
+        keys = [k for k in a.keys() & b.keys() if k[1].startswith("winter")]
+        a_ok = {k: a[k]["success"] == "True" for k in keys}
+        b_ok = {k: b[k]["success"] == "True" for k in keys}
+        a_only = sum(a_ok[k] and not b_ok[k] for k in keys)
+        b_only = sum(b_ok[k] and not a_ok[k] for k in keys)
+        print(
+            " ".join(a_cell), f"{sum(a_ok.values())}/{len(keys)} vs", " ".join(b_cell),
+            f"{sum(b_ok.values())}/{len(keys)}: {a_only} vs {b_only} better,",
+            f"sign test p={sign_test_p(a_only, b_only):.2g}",
+        )  # fmt: skip
+    print("\ndemonstrations (data/demos/summer): success, samples, ran to 30 s, style")
+    demos = json.loads((root / "data/demos/summer/index.json").read_text())["episodes"]
+    for success in (True, False):
+        group = [d for d in demos if d["success"] is success]
+        style = Counter(
+            "hesitant" if d["operator"]["style"]["hesitant"] else
+            "jumpy" if d["operator"]["style"]["jumpy"] else "other"
+            for d in group
+        )  # fmt: skip
+        print(
+            "successful" if success else "failed", len(group),
+            sum(d["n_samples"] for d in group),
+            sum(d["n_samples"] / d["rate_hz"] >= 29.9 for d in group), dict(style),
+        )  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
