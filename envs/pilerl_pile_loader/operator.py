@@ -36,13 +36,15 @@ perturbation is added to the *executed* boom and bucket commands while the opera
 clean command stays the label (``last_label``), so demonstrations show how the operator
 corrects drifts it never makes itself.
 
-**Decision rate.** A person corrects a joystick a few times a second, not 500 times: the
-operator decides at most every ``DECISION_PERIOD_S`` (0.05 s, 20 Hz, the env's default
-control rate) and holds its command in between, as a hand holds a lever. At a faster
-control rate (the paper's 500 Hz recordings) it reads the sensors and decides on every
-k-th step (k = the largest whole number of steps within 0.05 s) and its felt levels,
-windows and timers run on that decision clock, so a 500 Hz recording is the same operator
-as a 20 Hz one, sampled finer. At 20 Hz and slower it decides on every step.
+**Decision rate.** A person corrects a joystick a few times a second, not 500 times: at a
+control rate faster than 20 Hz (the paper's 500 Hz recordings) the operator reads the
+sensors and decides on every k-th step only, k = floor(``DECISION_PERIOD_S`` / dt) with
+``DECISION_PERIOD_S`` = 0.05 s (the env's default 20 Hz control period), and holds its
+command in between, as a hand holds a lever. Its felt levels, windows and timers run on
+that decision clock. Where 0.05 s is a whole number of control steps (500, 100, 60 Hz) it
+decides exactly at 20 Hz, so a 500 Hz recording is the 20 Hz operator sampled finer;
+elsewhere it decides a little faster (every step below 40 Hz, every 0.04 s at 50 Hz). At
+20 Hz and slower it decides on every step, as before.
 
 Controls are ``[boom, bucket, throttle]`` in [-1, 1] (see ``env``); sensor readings in rad
 and MPa (``sensors.SENSORS``). This module depends on numpy only.
@@ -79,7 +81,7 @@ LEVEL_FALL_S = 0.2  # ... and a falling one (quickly, but not every noise dip) [
 DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)
 STALL_WINDOW_S = 0.3  # the boom is felt to stall when, lifting this long, ...
 STALL_RISE_RAD = 0.01  # ... it has risen less than this [rad]
-DECISION_PERIOD_S = 0.05  # the operator decides at most this often; holds its command between [s]
+DECISION_PERIOD_S = 0.05  # decide every floor(this / dt) control steps, hold between [s]
 
 
 @dataclass(frozen=True)
@@ -290,14 +292,14 @@ class PileLoadingOperator:
     Args:
         style: how this operator drives.
         dt: control period [s]; the operator decides every ``steps_per_decision`` steps
-            (``dt`` itself up to 20 Hz, see the module's "Decision rate").
+            (every step below 40 Hz, see the module's "Decision rate").
         executed_noise: std of the DART perturbation of the executed boom and bucket
             commands (0 = off); ``last_label`` stays the clean command.
         noise_seed: seed of the perturbation (the same sequence after every ``reset``).
 
     Attributes:
         control_dt: the control period [s].
-        steps_per_decision: control steps per decision (1 at 20 Hz and slower).
+        steps_per_decision: control steps per decision (1 below 40 Hz).
         dt: the decision period [s] (``control_dt * steps_per_decision``), the clock of the
             operator's felt levels, windows and timers.
     """
@@ -346,7 +348,7 @@ class PileLoadingOperator:
         self._action = "lift"  # in filling: lift or curl
         self._pushing = False  # in filling: still crowding the pile with the throttle
         self._curl_from = 0.0  # bucket-floor pitch when the curl began [rad]
-        # what the operator remembers, as long as its windows (in control steps at this dt)
+        # what the operator remembers, as long as its windows (in decisions)
         self._boom_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))  # lifting
         self._drive_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))  # backing off
         self._push_peak = 0.0
@@ -524,7 +526,7 @@ class PileLoadingOperator:
         return not self._backed_off
 
     def _steps(self, window_s: float) -> int:
-        """Control steps that span ``window_s`` (both ends included), at least 2."""
+        """Decisions that span ``window_s`` (both ends included), at least 2."""
         return max(2, round(window_s / self.dt) + 1)
 
     def _executed(self, label: np.ndarray) -> np.ndarray:

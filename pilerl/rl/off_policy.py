@@ -193,6 +193,14 @@ def restore_replay(
         or writer["_cursor"] >= capacity
     ):
         raise CheckpointError(f"{path}: learner.replay has no valid writer position")
+    cursor, writes = writer["_cursor"], writer["_write_count"]
+    if cursor != writes % capacity or size != min(writes, capacity):
+        raise CheckpointError(
+            f"{path}: learner.replay's writer (cursor {cursor}, {writes} writes) does not fit "
+            f"its {size} transitions in a buffer of {capacity}"
+        )
+    if len(buffer) != 0:
+        raise ValueError(f"restore_replay: the buffer already holds {len(buffer)} transitions")
     if size == 0:
         return
     if set(data) != set(layout):

@@ -296,13 +296,14 @@ def small_run_file(checkpoint: Path, run_dir: Path) -> Path:
     from tensordict import TensorDict
 
     from pilerl.rl.finetuning import RUN_CHECKPOINT, _Run
+    from pilerl.rl.td3bc import REPLAY_INDEX_KEY
 
     with torch.random.fork_rng(devices=[]):
         run = _Run(tiny_td3bc_config(checkpoint, run_dir), run_dir, progress=False)
         learner = run.learner
         columns = {}
         for name, leaf in learner._replay_layout().items():
-            if name == "index":  # written by the buffer itself
+            if name == REPLAY_INDEX_KEY:  # written by the buffer itself
                 continue
             shape = (40, *leaf.per_transition)
             is_flag = leaf.dtype == torch.bool

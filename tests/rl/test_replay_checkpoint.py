@@ -87,6 +87,8 @@ def damage(state: dict, how: str) -> None:
         state["writer"]["_cursor"] = CAPACITY
     elif how == "write count":
         state["writer"]["_write_count"] = -1
+    elif how == "writer elsewhere":
+        state["writer"]["_cursor"] = 5  # 11 writes into 8 slots leave the cursor at 3
 
 
 @pytest.mark.parametrize(
@@ -106,6 +108,7 @@ def damage(state: dict, how: str) -> None:
         ("size", r"learner\.replay holds 9 transitions \(buffer size 8\)"),
         ("cursor", r"no valid writer position"),
         ("write count", r"no valid writer position"),
+        ("writer elsewhere", r"writer \(cursor 5, 11 writes\) does not fit its 8 transitions"),
     ],
 )
 def test_a_damaged_replay_entry_is_refused_naming_the_leaf_and_nothing_is_written(how, message):
@@ -131,3 +134,11 @@ def test_rlpd_refuses_a_replay_leaf_of_the_wrong_dtype(cloned):  # noqa: F811
     with pytest.raises(CheckpointError, match=r"learner\.replay/next/reward is torch\.float64"):
         fresh.load_state_dict(state, path=PATH)
     assert len(fresh.replay.online_buffer) == 0
+
+
+def test_a_replay_state_is_restored_only_into_an_empty_buffer():
+    state = replay_state(filled_buffer())
+    with pytest.raises(ValueError, match="already holds 8 transitions"):
+        restore_replay(
+            filled_buffer(), state, path=PATH, capacity=CAPACITY, layout=layout_of(transitions(1))
+        )

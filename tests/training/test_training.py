@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,7 @@ from test_recipes import run_recipe
 
 from pilerl.policies import load_actor, make_actor
 from pilerl.training import BCSettings, train_bc, train_bc_ensemble, validation_loss
+from pilerl.training.draw_ahead import MasksAhead
 
 ROOT = Path(__file__).resolve().parents[2]
 S = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
@@ -313,7 +315,7 @@ def test_gradient_step_matches_the_bcloss_path(datasets):
     assert all(torch.equal(got[k], want[k]) for k in want)
 
 
-def test_masks_drawn_ahead_give_the_same_run(datasets, tmp_path):
+def test_masks_drawn_ahead_give_the_same_run(datasets, tmp_path, monkeypatch):
     """draw_ahead=True: torch's masks drawn on a second thread give bit-identical losses,
     weights and RNG state (DANNet, s' wider than s, a short last batch), with resume."""
     _, train, validation = datasets
@@ -332,7 +334,12 @@ def test_masks_drawn_ahead_give_the_same_run(datasets, tmp_path):
         return actor, history, torch.get_rng_state()
 
     reference, expected, expected_rng = run(False)
+    drawn = []  # the masks really are drawn ahead: one draw per gradient step
+    next_step = MasksAhead.next_step
+    monkeypatch.setattr(MasksAhead, "next_step", lambda feed: drawn.append(1) or next_step(feed))
     actor, history, rng = run(True)
+    monkeypatch.undo()
+    assert len(drawn) == 3 * math.ceil(data.batch_size[0] / 100)
     assert history == expected
     assert torch.equal(rng, expected_rng)
     want, got = reference.module.state_dict(), actor.module.state_dict()
@@ -380,6 +387,29 @@ def test_ensemble_with_dropout_learns_and_members_differ(datasets):
     assert result.validation_loss.shape == (3, 6)
     assert (result.validation_loss[:, -1] < result.validation_loss[:, 0]).all()
     assert len(set(result.validation_loss[:, -1].round(8))) == 3
+
+
+def test_the_ensemble_draws_packed_masks_unless_told_otherwise(datasets):
+    """The ensemble's default mask draw is the packed one (one random word per four mask
+    elements), and ``dropout_masks="bernoulli"`` gives torch's own draws: other weights."""
+    _, train, _ = datasets
+    config = make_actor("dannet", sensors=S, stats=train.stats).module.config
+
+    def weights(**masks):
+        settings = BCSettings(epochs=1, batch_size=128, **masks)
+        result = train_bc_ensemble(
+            config, [0, 1], train.to_tensordict(), None, settings, progress=False
+        )
+        return [m.state_dict() for m in result.members]
+
+    default, packed, bernoulli = (
+        weights(),
+        weights(dropout_masks="packed"),
+        weights(dropout_masks="bernoulli"),
+    )
+    for got, want, other in zip(default, packed, bernoulli, strict=True):
+        assert all(torch.equal(got[k], want[k]) for k in want)
+        assert not all(torch.equal(got[k], other[k]) for k in other)
 
 
 @pytest.mark.parametrize("masks", ["packed", "bernoulli"])
