@@ -5,9 +5,12 @@
 #   bash scripts/paper_experiments.sh prep     # demonstrations and datasets (about 2 min)
 #   bash scripts/paper_experiments.sh A        # Exp. 1, Exp. 3, the heightfield cross-soil sweep
 #   bash scripts/paper_experiments.sh B        # Exp. 2, Exp. 4 (30 seeds)
+#   bash scripts/paper_experiments.sh C        # the particle cross-soil sweep (after Exp. 3)
 #   bash scripts/paper_experiments.sh report   # docs/results/paper from whatever has finished
 #
-# A and B may run at the same time (one core each), after prep. Run from the repository root;
+# A and B may run at the same time (one core each), after prep; C after A's Exp. 3 (the
+# particle pile runs about 1x real time, so C evaluates the same controllers on summer and
+# winter_c only, 4 episodes per seed: about an hour on one core). Run from the repository root;
 # PYTHON defaults to .venv/bin/python, NICE to 10. Each step's output goes to
 # logs/paper_experiments/<step>.out and its start and end to logs/paper_experiments/steps.log.
 set -u
@@ -52,11 +55,18 @@ A)
     step exp3 recipes/train_bc.py --multirun +experiment=exp3_attention evaluation.workers=1
     step cross_soil_heightfield recipes/evaluate.py --multirun env.soil=heightfield \
         "checkpoint=$(exp3_with_pt)" "evaluation.conditions=[summer,winter,held_out]" \
-        evaluation.episodes=10 evaluation.workers=1 hydra.sweep.dir=multirun/cross_soil_heightfield
+        evaluation.episodes=10 evaluation.workers=1 evaluation.videos=false \
+        hydra.sweep.dir=multirun/cross_soil_heightfield
     ;;
 B)
     step exp2 recipes/train_bc.py --multirun +experiment=exp2_data_and_pt evaluation.workers=1
     step exp4 recipes/train_bc.py --multirun +experiment=exp4_offline_validation ensemble_seeds=30
+    ;;
+C)
+    step cross_soil_particles recipes/evaluate.py --multirun env.soil=particles \
+        "checkpoint=$(exp3_with_pt)" "evaluation.conditions=[summer,winter_c]" \
+        evaluation.episodes=4 evaluation.workers=1 evaluation.videos=false \
+        hydra.sweep.dir=multirun/cross_soil_particles
     ;;
 report)
     args=()
@@ -64,14 +74,18 @@ report)
         dir=$(ls -d multirun/exp${n}_* 2>/dev/null | head -1)
         [ -n "$dir" ] && args+=("--exp$n" "$dir")
     done
-    [ -d multirun/cross_soil_heightfield ] && args+=(--cross-soil multirun/cross_soil_heightfield)
+    soils=()
+    for soil in heightfield particles; do
+        [ -d "multirun/cross_soil_$soil" ] && soils+=("multirun/cross_soil_$soil")
+    done
+    [ ${#soils[@]} -gt 0 ] && args+=(--cross-soil "${soils[@]}")
     step report -m pilerl.reports.paper "${args[@]}" \
         --figure-actor NNetV2=multirun/exp3_attention/5/best.pt \
         --figure-actor DANNet=multirun/exp3_attention/17/best.pt \
         --figure-demos data/demos/winter_c_validation --out docs/results/paper
     ;;
 *)
-    echo "usage: bash scripts/paper_experiments.sh prep|A|B|report" >&2
+    echo "usage: bash scripts/paper_experiments.sh prep|A|B|C|report" >&2
     exit 2
     ;;
 esac

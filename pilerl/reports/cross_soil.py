@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,11 +35,17 @@ Controller = tuple[str, str, str]  # controller, sensor set, dataset ("" when un
 
 @dataclass(frozen=True)
 class SoilCells:
-    """Cells of an evaluation sweep keyed ``(controller, sensors, dataset, test)``, per soil."""
+    """Cells of evaluation sweeps keyed ``(controller, sensors, dataset, test)``, per soil.
+
+    ``pooled_conditions``: the conditions every finished job evaluated, pooled into the
+    ``EVERY_CONDITION`` test, so that soils evaluated on different condition lists (a slow
+    soil model on fewer) are compared on the same conditions.
+    """
 
     by_soil: dict[str, dict[tuple[str, str, str, str], Cell]]
     finished: list[Path]
     unfinished: list[Path]
+    pooled_conditions: tuple[str, ...] = ()
 
 
 def controller_of(checkpoint: str | None, name: str | None) -> tuple[Controller, int]:
@@ -63,11 +70,14 @@ def controller_of(checkpoint: str | None, name: str | None) -> tuple[Controller,
     return (name or run_dir.name, "", ""), 0
 
 
-def soil_cells(sweep_dir: str | Path) -> SoilCells:
-    """Read every evaluate job under ``sweep_dir``: its soil, controller and results."""
-    parts: dict[str, dict[tuple, list]] = defaultdict(lambda: defaultdict(list))
+def soil_cells(sweep_dirs: str | Path | Sequence[str | Path]) -> SoilCells:
+    """Read every evaluate job under ``sweep_dirs`` (one sweep directory, or several, e.g.
+    one per soil model): its soil, controller and results."""
+    if isinstance(sweep_dirs, (str, Path)):
+        sweep_dirs = [sweep_dirs]
+    jobs = []  # (soil, controller, setup, results, the simulator's conditions in order)
     finished, unfinished = [], []
-    for job_dir in job_directories(sweep_dir):
+    for job_dir in sorted({job for d in sweep_dirs for job in job_directories(d)}):
         config = read_run_settings(job_dir) or read_config(job_dir)
         try:
             env = config.get("env") or {}
@@ -81,15 +91,23 @@ def soil_cells(sweep_dir: str | Path) -> SoilCells:
             continue
         finished.append(job_dir)
         simulator = env.get("simulator", DEFAULT_SIMULATOR)
-        results[EVERY_CONDITION] = pool_conditions(results, get_simulator(simulator).conditions)
         setup = JobSetup(job_dir, *controller, seed=seed, config=config)
+        jobs.append((soil, controller, setup, results, get_simulator(simulator).conditions))
+    shared = [
+        condition
+        for condition in (jobs[0][4] if jobs else ())
+        if all(condition in results for *_, results, _ in jobs)
+    ]
+    parts: dict[str, dict[tuple, list]] = defaultdict(lambda: defaultdict(list))
+    for soil, controller, setup, results, _ in jobs:
+        results[EVERY_CONDITION] = pool_conditions(results, shared)
         for test, result in results.items():
             parts[soil][(*controller, test)].append((setup, result))
     by_soil = {
         soil: {key: pool_seeds(members, cell=(soil, *key)) for key, members in cells.items()}
         for soil, cells in parts.items()
     }
-    return SoilCells(by_soil, finished, unfinished)
+    return SoilCells(by_soil, finished, unfinished, tuple(shared))
 
 
 def pool_conditions(results: dict[str, TestResult], conditions) -> TestResult:

@@ -497,19 +497,21 @@ def _controller_name(actor) -> str:
     return actor_policy(actor).config.controller
 
 
-def add_cross_soil(report: Report, sweep_dir: Path) -> None:
-    """Held-out conditions and the cross-soil check, from an evaluate sweep over
-    checkpoints and soils: every controller's row per soil (summer, each winter day, each
-    held-out condition), then Kendall's tau over the controllers and the gap per one."""
+def add_cross_soil(report: Report, sweep_dirs: Sequence[Path]) -> None:
+    """Held-out conditions and the cross-soil check, from evaluate sweeps over checkpoints
+    and soils: every controller's row per soil (summer, each winter day, each held-out
+    condition), then Kendall's tau over the controllers and the gap per one."""
     from .cross_soil import EVERY_CONDITION, GAP_TARGET, TAU_TARGET, soil_agreement, soil_cells
 
-    cells = soil_cells(sweep_dir)
+    cells = soil_cells(sweep_dirs)
     report.heading("Held-out conditions and the cross-soil check")
     soils = sorted(cells.by_soil)
     report.paragraph(
-        f"Sweep `{sweep_dir}`: {len(cells.finished)} finished evaluation jobs on the soil "
-        f"models {', '.join(soils) or 'none'}; every controller's training seeds pooled "
-        "[lowest–highest seed]."
+        f"Sweep{'s' if len(sweep_dirs) > 1 else ''} "
+        f"{', '.join(f'`{d}`' for d in sweep_dirs)}: {len(cells.finished)} finished "
+        f"evaluation jobs on the soil models {', '.join(soils) or 'none'}; every "
+        "controller's training seeds pooled [lowest–highest seed]. 'every condition' pools "
+        f"the conditions every job evaluated: {', '.join(cells.pooled_conditions) or 'none'}."
     )
     if cells.unfinished:
         report.paragraph(
@@ -636,7 +638,7 @@ def build_report(
     exp2: Path | None = None,
     exp3: Path | None = None,
     exp4: Path | None = None,
-    cross_soil: Path | None = None,
+    cross_soil: Path | Sequence[Path] | None = None,
     figure_actors: dict[str, Path] | None = None,
     figure_demos: Path | None = None,
     notes: list[str] | None = None,
@@ -674,7 +676,8 @@ def build_report(
     if exp4 is not None:
         add_offline_validation(report, Path(exp4), out_dir)
     if cross_soil is not None:
-        add_cross_soil(report, Path(cross_soil))
+        sweeps = [cross_soil] if isinstance(cross_soil, (str, Path)) else list(cross_soil)
+        add_cross_soil(report, [Path(d) for d in sweeps])
     if figure_actors and figure_demos is not None:
         add_controller_figures(report, out_dir, actors=figure_actors, demos=Path(figure_demos))
     return report.write(out_dir)
@@ -687,8 +690,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--cross-soil",
         type=Path,
-        help="multirun directory of recipes/evaluate.py over checkpoints and env.soil "
-        "(held-out conditions, Kendall's tau between the soils)",
+        nargs="+",
+        help="multirun directories of recipes/evaluate.py over checkpoints and env.soil, "
+        "e.g. one per soil model (held-out conditions, Kendall's tau between the soils)",
     )
     parser.add_argument("--out", type=Path, required=True, help="report directory")
     parser.add_argument("--note", action="append", default=[], help="a line for the notes")

@@ -276,6 +276,41 @@ def test_cross_soil_report_gives_tau_and_the_gap_per_controller(tmp_path):
     assert "Soil model `particles`:" in text and "| wet_clay |" in text
 
 
+def test_soils_in_separate_sweeps_pool_only_the_conditions_both_evaluated(tmp_path):
+    # heightfield on summer and wet_clay, particles (slower) on summer only, each in its
+    # own sweep: 'every condition' must compare summer with summer, not wet_clay too
+    train = tmp_path / "train"
+    rates = {"rf": (4, 0, 3), "dannet": (1, 4, 2)}  # heightfield summer, wet_clay; particles
+    for n, (policy, (hf_summer, hf_clay, pt_summer)) in enumerate(rates.items()):
+        run = seeded_job(train, n, policy=policy, seed=0, wins={"summer": [True]})
+        for soil, wins in (
+            ("heightfield", {"summer": hf_summer, "wet_clay": hf_clay}),
+            ("particles", {"summer": pt_summer}),
+        ):
+            seeded_job(
+                tmp_path / soil,
+                n,
+                policy=policy,
+                seed=0,
+                soil=soil,
+                checkpoint=str(run / "best.pt"),
+                wins={c: [True] * k + [False] * (4 - k) for c, k in wins.items()},
+            )
+    cells = soil_cells([tmp_path / "heightfield", tmp_path / "particles"])
+    assert cells.pooled_conditions == ("summer",) and len(cells.finished) == 4
+    agreement = soil_agreement(cells, ("heightfield", "particles"))
+    # pooled over summer only: rf 4/4 vs 3/4, dannet 1/4 vs 2/4; with wet_clay the
+    # heightfield would rank dannet (5/8) above rf (4/8) and tau would flip sign
+    assert agreement.rates == [(0.25, 0.5), (1.0, 0.75)]
+    assert agreement.tau == pytest.approx(1.0)
+    markdown, _ = build_report(
+        out_dir=tmp_path / "report", cross_soil=[tmp_path / "heightfield", tmp_path / "particles"]
+    )
+    text = markdown.read_text()
+    assert "'every condition' pools the conditions every job evaluated: summer." in text
+    assert "| every condition | 2 | 1.00 | 25 points | no |" in text
+
+
 def test_a_repeated_seed_is_refused_naming_the_cell_the_seed_and_the_jobs(tmp_path):
     # a sweep run twice into one tree: two finished jobs of DANNet seed 2, same outcomes
     sweep = tmp_path / "exp"
