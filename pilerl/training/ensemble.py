@@ -112,7 +112,7 @@ def _train_pass(
     base = copy.deepcopy(members[0]).to("meta")
     readings, target = _readings(members[0], train)
     val = _readings(members[0], validation) if validation is not None else None
-    dropouts = {}  # packed masks: dropout layer -> (p, the shape of one row's features)
+    dropouts = {}  # packed masks: dropout layer -> its DropoutSite (p, one row's shape)
     if (settings.dropout_masks or "packed") == "packed":
         dropouts = dropout_layers(members[0], lambda: members[0](*readings[:1].split(1, dim=-1)))
         replace_dropout(base, GivenMaskDropout)
@@ -140,8 +140,8 @@ def _train_pass(
         for start in range(0, n, settings.batch_size):
             idx = order[start : start + settings.batch_size]
             masks = {
-                f"{name}.mask": packed_keep_masks([(len(seeds), len(idx), *shape)], p)[0]
-                for name, (p, shape) in dropouts.items()
+                f"{name}.mask": packed_keep_masks([(len(seeds), len(idx), *site.shape)], site.p)[0]
+                for name, site in dropouts.items()
             }
             losses = losses_of(params, buffers | masks, readings[idx], target[idx])
             optimizer.zero_grad()

@@ -93,6 +93,35 @@ def test_packed_dropout_masks_train_deterministically_and_resume(datasets, tmp_p
         run(4, "bernoulli", tmp_path)
 
 
+def test_resume_takes_none_and_bernoulli_for_the_same_masks(datasets, tmp_path):
+    """dropout_masks None and "bernoulli" are both torch's draws in train_bc: a run started
+    with one resumes with the other (to the weights of a straight run); packed is refused,
+    the differing key named."""
+    _, train, validation = datasets
+    data = train.to_tensordict()
+
+    def run(epochs: int, masks: str | None, run_dir: Path | None = None):
+        torch.manual_seed(3)
+        actor = make_actor("dannet", sensors=S, stats=train.stats)
+        settings = BCSettings(epochs=epochs, batch_size=64, seed=3, dropout_masks=masks)
+        return train_bc(actor, data, validation, settings, run_dir=run_dir, progress=False)
+
+    straight, expected = run(3, None)
+    want = straight.module.state_dict()
+    for first, then in ((None, "bernoulli"), ("bernoulli", None)):
+        run_dir = tmp_path / f"{first}_then_{then}"
+        run(2, first, run_dir)  # "killed" after 2 epochs
+        resumed, history = run(3, then, run_dir)
+        assert history == expected
+        assert all(torch.equal(resumed.module.state_dict()[k], want[k]) for k in want)
+        with pytest.raises(ValueError, match=r"differ in \['dropout_masks'\]"):
+            run(4, "packed", run_dir)
+    run(2, "packed", tmp_path / "packed")
+    for masks in (None, "bernoulli"):
+        with pytest.raises(ValueError, match=r"'packed'.*differ in \['dropout_masks'\]"):
+            run(3, masks, tmp_path / "packed")
+
+
 def test_resume_refuses_a_run_directory_of_another_model(datasets, tmp_path):
     _, train, validation = datasets
     data = train.to_tensordict()
@@ -355,6 +384,36 @@ def test_masks_drawn_ahead_give_the_same_run(datasets, tmp_path, monkeypatch):
             make_actor("dannet", sensors=S, stats=train.stats), data, None,
             BCSettings(epochs=1, dropout_masks="packed"), progress=False, draw_ahead=True,
         )  # fmt: skip
+
+
+def test_draw_ahead_with_nothing_to_draw_trains_as_without_and_warns_once(datasets, caplog):
+    """draw_ahead where no dropout mask is drawn by a gradient step (NNet's default
+    Levenberg-Marquardt, a controller without dropout, the forest's fit): the same run as
+    without it, and one warning per call that it has no effect (not an error: it cannot
+    change a result, and a sweep over controllers would stop on NNet)."""
+    _, train, validation = datasets
+    data = train.to_tensordict()
+    cases = {
+        "levenberg_marquardt trainer's steps are not drawn ahead": ("nnet", {}),
+        "'nnetv2' has no dropout layer with p > 0": ("nnetv2", {"dropout": 0.0}),
+        "the random forest is fitted": ("rf", {"n_estimators": 2}),
+    }
+    for reason, (controller, options) in cases.items():
+        runs = []
+        for draw_ahead in (False, True):
+            torch.manual_seed(5)
+            actor = make_actor(controller, sensors=S, stats=train.stats, options=options)
+            caplog.clear()
+            _, history = train_bc(
+                actor, data, validation, BCSettings(epochs=2, batch_size=64), progress=False,
+                draw_ahead=draw_ahead,
+            )  # fmt: skip
+            warnings = [r.getMessage() for r in caplog.records if "draw_ahead" in r.getMessage()]
+            runs.append((history, warnings))
+        (plain, none), (ahead, warned) = runs
+        assert ahead == plain and none == []
+        assert len(warned) == 1 and "draw_ahead has no effect" in warned[0], warned
+        assert reason in warned[0], warned
 
 
 def test_ensemble_members_equal_separate_runs(datasets):
