@@ -65,6 +65,7 @@ RUN_FORMAT = "pilerl.bc_run"
 RUN_VERSION = 2  # 2: with a SHA-256 of the content (pilerl.policies.checkpoint_file)
 LEGACY_RUN_VERSIONS = (1,)
 EVAL_BATCH = 8192  # rows per forward pass when computing a validation loss
+DEFAULT_DROPOUT_MASKS = "bernoulli"  # train_bc's masks when BCSettings.dropout_masks is None
 
 
 @dataclass(frozen=True)
@@ -204,7 +205,7 @@ def train_bc(
         initial=len(history),
         total=settings.epochs,
     )
-    masks = settings.dropout_masks or "bernoulli"
+    masks = settings.dropout_masks or DEFAULT_DROPOUT_MASKS
     if draw_ahead and masks != "bernoulli":
         raise ValueError(f"train_bc: draw_ahead draws torch's bernoulli masks, not {masks!r}")
 
@@ -403,7 +404,7 @@ def _as_resumed(settings: dict) -> dict:
     """Training settings as a resume compares them (``epochs`` may grow): in ``train_bc``
     ``dropout_masks`` ``None`` means torch's draws, the same as ``bernoulli``, and a run
     saved before the key existed drew torch's masks too."""
-    return {**settings, "dropout_masks": settings.get("dropout_masks") or "bernoulli"}
+    return {**settings, "dropout_masks": settings.get("dropout_masks") or DEFAULT_DROPOUT_MASKS}
 
 
 def _inputs(config) -> str:

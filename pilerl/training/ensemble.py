@@ -46,6 +46,7 @@ from .bc import EVAL_BATCH, BCSettings
 from .dropout_masks import GivenMaskDropout, dropout_layers, packed_keep_masks, replace_dropout
 
 MEMBERS_PER_PASS = 16  # members trained together (see the module docstring)
+DEFAULT_DROPOUT_MASKS = "packed"  # the masks when BCSettings.dropout_masks is None
 
 
 @dataclass
@@ -113,7 +114,7 @@ def _train_pass(
     readings, target = _readings(members[0], train)
     val = _readings(members[0], validation) if validation is not None else None
     dropouts = {}  # packed masks: dropout layer -> its DropoutSite (p, one row's shape)
-    if (settings.dropout_masks or "packed") == "packed":
+    if (settings.dropout_masks or DEFAULT_DROPOUT_MASKS) == "packed":
         dropouts = dropout_layers(members[0], lambda: members[0](*readings[:1].split(1, dim=-1)))
         replace_dropout(base, GivenMaskDropout)
 

@@ -264,6 +264,63 @@ def test_train_bc_recipe_writes_checkpoints_logs_and_plot(datasets, tmp_path):
     assert bad.returncode != 0 and "not a pilerl dataset" in bad.stderr
 
 
+def test_train_bc_recipe_chooses_the_dropout_masks_and_draws_ahead(datasets, tmp_path, monkeypatch):
+    """The recipe's dropout_masks and draw_ahead keys reach the training; null and
+    bernoulli are the same run (also for a run directory recorded before the key), packed
+    another; a bad name or combination exits non-zero naming the key, writing nothing."""
+    root, _, _ = datasets
+
+    def train(name: str, *overrides: str, policy: str = "dannet"):
+        run_dir = f"hydra.run.dir={tmp_path / name}"
+        common = ("epochs=2", "batch_size=64", f"policy={policy}", "logger=none")
+        return train_bc_recipe(run_dir, *common, *overrides, data_root=root)
+
+    def metrics(name: str) -> dict:
+        return json.loads((tmp_path / name / "metrics.json").read_text())
+
+    def skipped(result) -> bool:
+        return result.returncode == 0 and "already finished" in result.stdout + result.stderr
+
+    assert train("default").returncode == 0
+    drawn = []  # the masks are drawn ahead: draw_ahead reaches train_bc
+    next_step = MasksAhead.next_step
+    monkeypatch.setattr(MasksAhead, "next_step", lambda feed: drawn.append(1) or next_step(feed))
+    assert train("ahead", "draw_ahead=true").returncode == 0
+    monkeypatch.undo()
+    assert drawn and metrics("ahead") == metrics("default")  # torch's draws: the same run
+    assert train("packed", "dropout_masks=packed").returncode == 0
+    assert metrics("packed")["train_loss"] != metrics("default")["train_loss"]
+
+    assert skipped(train("default", "dropout_masks=bernoulli"))  # what null stands for
+    assert skipped(train("default", "draw_ahead=true"))  # the same results
+    refused = train("default", "dropout_masks=packed")
+    assert refused.returncode != 0 and "dropout_masks: 'bernoulli' -> 'packed'" in refused.stderr
+    record_path = tmp_path / "default" / "run.json"  # as recorded before the key existed
+    record = json.loads(record_path.read_text())
+    del record["settings"]["dropout_masks"]
+    record_path.write_text(json.dumps(record))
+    assert skipped(train("default"))
+    assert train("default", "dropout_masks=packed").returncode != 0
+
+    # an ensemble draws packed masks unless told; it draws nothing ahead and says so
+    assert train("ensemble", "ensemble_seeds=2", policy="annet").returncode == 0
+    ahead = train("ensemble_ahead", "ensemble_seeds=2", "draw_ahead=true", policy="annet")
+    assert ahead.returncode == 0 and "draw_ahead has no effect" in ahead.stdout + ahead.stderr
+    assert metrics("ensemble_ahead") == metrics("ensemble")
+    masks = "dropout_masks=bernoulli"
+    assert train("ensemble_torch", "ensemble_seeds=2", masks, policy="annet").returncode == 0
+    assert metrics("ensemble_torch") != metrics("ensemble")
+
+    for overrides, message in (
+        (["dropout_masks=fast"], "dropout_masks: unknown 'fast'; known: ['bernoulli', 'packed']"),
+        (["dropout_masks=packed", "draw_ahead=true"], "draw_ahead: draws torch's bernoulli"),
+    ):
+        bad = train("bad", *overrides)
+        assert bad.returncode != 0 and message in bad.stderr, bad.stderr[-2000:]
+        written = {path.name for path in (tmp_path / "bad").iterdir()}
+        assert written <= {".hydra", "train_bc.log"}, written  # Hydra's own files only
+
+
 def test_nnet_trains_with_levenberg_marquardt_by_default_and_beats_gradient(datasets):
     _, train, validation = datasets
     data, losses = train.to_tensordict(), {}
