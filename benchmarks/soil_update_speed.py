@@ -29,23 +29,13 @@ from collections.abc import Callable
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import gymnasium as gym  # noqa: E402
-import numpy as np  # noqa: E402
+from pilerl_pile_loader.open_loop import scripted_action  # noqa: E402
 
 import pilerl  # noqa: E402,F401
 
 CONDITIONS = ("summer", "winter_a", "winter_b", "winter_c", "winter_d")
 STATES = {"approach": (0,), "digging": (60, 70, 80, 90)}  # control steps driven, by sim
 SOIL_DT_S = 0.025  # the default soil update interval (40 Hz)
-
-
-def scripted_action(step: int) -> np.ndarray:
-    """[boom, bucket, throttle] at 20 Hz: drive in, then lift and curl."""
-    t = step * 0.05
-    if t < 3.0:
-        return np.array([0.0, 0.0, 0.8], np.float32)
-    if t < 6.0:
-        return np.array([0.5, 0.3, 0.5], np.float32)
-    return np.array([0.8, 1.0, 0.1], np.float32)
 
 
 def soils_in_state(n: int, steps: tuple[int, ...]) -> list:

@@ -80,6 +80,7 @@ class Run:
         settings: Mapping[str, Any] | None = None,
         inputs: Mapping[str, str | Path | None] | None = None,
         growable: Iterable[str] = (),
+        added: Mapping[str, Any] | None = None,
         **facts: Any,
     ) -> None:
         """Record this run in ``run_dir`` (default ``dir``), or stop when it finished there.
@@ -91,7 +92,7 @@ class Run:
         """
         where = Path(run_dir) if run_dir is not None else self.dir
         recorded = self.settings if settings is None else settings
-        if begin_run(where, recorded, inputs=inputs, growable=growable, **facts):
+        if begin_run(where, recorded, inputs=inputs, growable=growable, added=added, **facts):
             raise RunFinished(str(where))
         self.began = True
 

@@ -54,6 +54,7 @@ NOT_RESULTS = (
     "*camera",
     "logger.*",
     "*.progress",
+    "draw_ahead",  # train_bc: torch's dropout masks drawn on a second thread, bit-identical
 )  # collection workers and envs per worker change what RL collects: they stay in
 PACKAGES = ("pilerl", "torch", "torchrl", "tensordict", "mujoco", "gymnasium", "hydra-core")
 HASH_CHUNK_BYTES = 1 << 20
@@ -165,6 +166,7 @@ def begin_run(
     *,
     inputs: Mapping[str, str | Path | None] | None = None,
     growable: Iterable[str] = (),
+    added: Mapping[str, Any] | None = None,
     **facts: Any,
 ) -> bool:
     """Check ``run_dir`` against ``settings`` and ``inputs``; record them. True: skip it.
@@ -175,6 +177,9 @@ def begin_run(
         inputs: name -> file or dataset directory the run reads (``None``: not used).
         growable: dotted keys (glob patterns) of budgets that may be raised to continue a
             run (a finished run with a larger budget resumes instead of being skipped).
+        added: settings added to the config after runs were recorded without them:
+            dotted key -> the value such a run ran with (a record without the key
+            matches that value, so a new key does not refuse the runs made before it).
         facts: run-specific provenance (control rate, sensor set ...).
 
     Raises :class:`RunMismatch` when the directory holds a run with other settings or
@@ -194,7 +199,7 @@ def begin_run(
             "its results cannot be matched to this config: choose another run directory"
         )
     if recorded is not None:
-        differences = _differences(recorded, flat, input_prints, growable)
+        differences = _differences(recorded, flat, input_prints, growable, added or {})
         if differences:
             _restore_hydra_files(run_dir, recorded)
             raise RunMismatch(
@@ -254,9 +259,9 @@ def read_run_settings(run_dir: str | Path) -> dict[str, Any] | None:
 
 
 def _differences(
-    recorded: dict, flat: dict, input_prints: dict, growable: tuple[str, ...]
+    recorded: dict, flat: dict, input_prints: dict, growable: tuple[str, ...], added: Mapping
 ) -> list[str]:
-    before, now = recorded["settings"], flat
+    before, now = {k: v for k, v in added.items() if k in flat} | recorded["settings"], flat
     differences = [
         f"{key}: {before.get(key, '<unset>')!r} -> {now.get(key, '<unset>')!r}"
         for key in sorted(set(before) | set(now))

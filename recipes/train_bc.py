@@ -3,6 +3,8 @@
     python recipes/train_bc.py policy=dannet sensors=s_pt_sprime
     python recipes/train_bc.py policy=nnetv2 train_data=data/datasets/d_i_summer epochs=20
     python recipes/train_bc.py policy=rf evaluation.episodes=10   # + closed-loop test
+    python recipes/train_bc.py dropout_masks=packed    # cheaper dropout draws, other weights
+    python recipes/train_bc.py draw_ahead=true         # torch's draws on a 2nd core, same weights
 
 Writes to the run directory: ``best.pt`` (actor with the lowest validation loss),
 ``last.pt`` (resumable training state), ``losses.png``, the TorchRL CSV log and
@@ -30,6 +32,7 @@ from pilerl.training.clone import (
     clone,
     clone_ensemble,
     cloning_actor,
+    drawn_masks,
 )
 from pilerl.training.settings import TrainBCConfig
 
@@ -77,11 +80,16 @@ def main(config: TrainBCConfig, run: Run) -> dict[str, float]:
         learning_rate=config.learning_rate,
         seed=config.seed,
         trainer=config.trainer,
+        dropout_masks=config.dropout_masks,
     )
 
     # --- this run directory: skip when finished, refuse another config or dataset
     rates = sorted({meta.rate_hz for meta in train_store.episodes})  # the control rate
+    masks = drawn_masks(config.dropout_masks, ensemble_seeds=config.ensemble_seeds)
+    default_masks = drawn_masks(None, ensemble_seeds=config.ensemble_seeds)
     run.begin(
+        settings=run.settings | {"dropout_masks": masks},  # null: the name it stands for
+        added={"dropout_masks": default_masks},  # what runs recorded before the key drew
         inputs={"train_data": config.train_data, "validation_data": config.validation_data},
         control_hz=rates[0] if len(rates) == 1 else rates,
         sensors=controller_inputs(policy.name, sensors.s, sensors.s_prime)[0],
@@ -89,7 +97,16 @@ def main(config: TrainBCConfig, run: Run) -> dict[str, float]:
     if config.ensemble_seeds > 1:  # many seeds at once: curves, not a deployable model
         seeds = range(config.seed, config.seed + config.ensemble_seeds)
         title = f"{policy.name}, {len(seeds)} seeds"
-        return clone_ensemble(actor, seeds, train, validation, settings, run.dir, title=title)
+        return clone_ensemble(
+            actor,
+            seeds,
+            train,
+            validation,
+            settings,
+            run.dir,
+            title=title,
+            draw_ahead=config.draw_ahead,
+        )
 
     # --- one model, then the trained controller in closed loop
     title = f"{policy.name}, s={len(sensors.s)} sensors"
@@ -101,6 +118,7 @@ def main(config: TrainBCConfig, run: Run) -> dict[str, float]:
         run.dir,
         logger_backend=config.logger.backend,
         title=title,
+        draw_ahead=config.draw_ahead,
     )
     log.info("%s: %s", run.dir, metrics)
     if config.evaluation.episodes > 0:

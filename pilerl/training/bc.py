@@ -29,6 +29,7 @@ mean), so a fixed seed gives bit-identical losses and weights (pinned by
 from __future__ import annotations
 
 import json
+import logging
 import math
 from contextlib import nullcontext
 from dataclasses import asdict, dataclass
@@ -58,11 +59,13 @@ from pilerl.policies.registry import get_spec
 from .draw_ahead import MasksAhead, masks_ahead
 from .dropout_masks import check_dropout_masks, dropout_masks
 
+log = logging.getLogger(__name__)
 TRAINERS = ("gradient", "levenberg_marquardt", "fit")
 RUN_FORMAT = "pilerl.bc_run"
 RUN_VERSION = 2  # 2: with a SHA-256 of the content (pilerl.policies.checkpoint_file)
 LEGACY_RUN_VERSIONS = (1,)
 EVAL_BATCH = 8192  # rows per forward pass when computing a validation loss
+DEFAULT_DROPOUT_MASKS = "bernoulli"  # train_bc's masks when BCSettings.dropout_masks is None
 
 
 @dataclass(frozen=True)
@@ -159,7 +162,14 @@ def train_bc(
         logger: a TorchRL logger (``log_scalar(name, value, step)``), or ``None``.
         draw_ahead: draw torch's dropout masks (``bernoulli``) a step ahead on a second
             thread (``pilerl.training.draw_ahead``): bit-identical results, faster where
-            a second core is idle, slower where it is not.
+            a second core is idle, slower where it is not. With ``packed`` masks it is
+            refused (it draws torch's masks: two generators asked for). Where there is
+            nothing to draw ahead (the Levenberg-Marquardt trainer, whose steps are not
+            drawn ahead, the forest's fit, a controller without dropout with p > 0) training
+            runs as without it and one warning per call says it has no effect: the
+            option changes where masks are drawn, never what is computed, so an error
+            would stop a sweep over controllers (NNet trains with Levenberg-Marquardt by
+            default) for a setting that cannot change its results.
     """
     policy = actor_policy(actor)
     trainer = settings.trainer or get_spec(policy.config.controller).trainer
@@ -168,6 +178,8 @@ def train_bc(
             raise ValueError(
                 f"trainer 'fit' is for the random forest, not {policy.config.controller!r}"
             )
+        if draw_ahead:
+            _draw_ahead_unused("the random forest is fitted, it has no dropout")
         return _fit_forest(actor, train, validation, run_dir=run_dir, logger=logger)
     torch.manual_seed(settings.seed)
     # only what training reads: indexing a batch then copies 8 columns, not the whole
@@ -193,7 +205,7 @@ def train_bc(
         initial=len(history),
         total=settings.epochs,
     )
-    masks = settings.dropout_masks or "bernoulli"
+    masks = settings.dropout_masks or DEFAULT_DROPOUT_MASKS
     if draw_ahead and masks != "bernoulli":
         raise ValueError(f"train_bc: draw_ahead draws torch's bernoulli masks, not {masks!r}")
 
@@ -207,6 +219,12 @@ def train_bc(
         else nullcontext(None)
     )
     with dropout_masks(policy, masks), ahead as feed:
+        if draw_ahead and feed is None:
+            _draw_ahead_unused(
+                f"the {trainer} trainer's steps are not drawn ahead"
+                if trainer != "gradient"
+                else f"{policy.config.controller!r} has no dropout layer with p > 0"
+            )
         for epoch in bar:
             policy.train()
             generator = torch.Generator().manual_seed(settings.seed * 1_000_003 + epoch)
@@ -286,6 +304,10 @@ def _gradient_epoch(
     return total / len(order)
 
 
+def _draw_ahead_unused(reason: str) -> None:
+    log.warning("train_bc: draw_ahead has no effect: %s", reason)
+
+
 def _fit_forest(
     actor: RandomForestActor,
     train: TensorDict,
@@ -341,11 +363,17 @@ def _resume(path: Path, settings: BCSettings, wanted):
         what="training checkpoint",
     )
     saved = parse_json(path, payload.get("settings"), "settings")
-    if isinstance(saved, dict):  # runs saved before dropout_masks existed drew torch's masks
-        saved = {"dropout_masks": None, **saved}
-    if not isinstance(saved, dict) or saved != asdict(settings) | {"epochs": saved.get("epochs")}:
+    now = _as_resumed(asdict(settings))
+    before = _as_resumed(saved) if isinstance(saved, dict) else {}
+    differing = sorted(
+        key
+        for key in set(before) | set(now)
+        if key != "epochs" and before.get(key, "<unset>") != now.get(key, "<unset>")
+    )
+    if not isinstance(saved, dict) or differing:
         raise ValueError(
-            f"{path}: was trained with {saved}, not {asdict(settings)}; use a new run directory"
+            f"{path}: was trained with {saved}, not {asdict(settings)} (they differ in "
+            f"{differing or ['settings']}); use a new run directory"
         )
     config = actor_config_from_json(path, payload.get("actor_config"), "actor_config")
     if config.to_json() != wanted.to_json():
@@ -370,6 +398,13 @@ def _resume(path: Path, settings: BCSettings, wanted):
         raise CheckpointError(f"{path}: rng_state is not torch's generator state")
     torch.set_rng_state(rng_state)
     return policy, optimizer, history, best
+
+
+def _as_resumed(settings: dict) -> dict:
+    """Training settings as a resume compares them (``epochs`` may grow): in ``train_bc``
+    ``dropout_masks`` ``None`` means torch's draws, the same as ``bernoulli``, and a run
+    saved before the key existed drew torch's masks too."""
+    return {**settings, "dropout_masks": settings.get("dropout_masks") or DEFAULT_DROPOUT_MASKS}
 
 
 def _inputs(config) -> str:

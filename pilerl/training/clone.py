@@ -21,6 +21,7 @@ from pilerl.layout import RunLayout
 from pilerl.loggers import make_logger
 from pilerl.policies import controller_inputs, get_spec, make_actor, save_actor
 
+from . import bc, ensemble
 from .bc import BCSettings, epochs_for_steps, train_bc
 from .ensemble import train_bc_ensemble, write_ensemble_curves
 from .plots import plot_ensemble, plot_losses
@@ -77,6 +78,15 @@ def bc_settings(
     )
 
 
+def drawn_masks(dropout_masks: str | None, *, ensemble_seeds: int) -> str:
+    """The dropout masks a run draws: ``dropout_masks``, else the trainer's default (one
+    model: torch's ``bernoulli``; an ensemble: ``packed``). What a run directory records,
+    so that ``null`` and the name it stands for are the same run."""
+    if dropout_masks is not None:
+        return dropout_masks
+    return (ensemble if ensemble_seeds > 1 else bc).DEFAULT_DROPOUT_MASKS
+
+
 def clone(
     actor: TensorDictModule,
     train: TensorDict,
@@ -86,15 +96,23 @@ def clone(
     *,
     logger_backend: str,
     title: str,
+    draw_ahead: bool = False,
 ) -> tuple[TensorDictModule, dict[str, float | int]]:
     """Train ``actor`` into ``run_dir``; returns (the trained actor, the run's metrics:
     epochs, final training loss and, with validation data, the final and best validation
     losses). Besides ``best.pt`` (lowest validation loss) and ``last.pt`` (training
-    state), ``final.pt`` holds the actor after the whole budget."""
+    state), ``final.pt`` holds the actor after the whole budget. ``draw_ahead``: as
+    ``train_bc``'s."""
     layout = RunLayout(run_dir)
     logger = make_logger(logger_backend, layout.root, experiment_name="bc")
     actor, history = train_bc(
-        actor, train, validation, settings, run_dir=layout.root, logger=logger
+        actor,
+        train,
+        validation,
+        settings,
+        run_dir=layout.root,
+        logger=logger,
+        draw_ahead=draw_ahead,
     )
     save_actor(layout.final_actor, actor)
     plot_losses(history, layout.losses_plot, title=title)
@@ -115,9 +133,14 @@ def clone_ensemble(
     run_dir: str | Path,
     *,
     title: str,
+    draw_ahead: bool = False,
 ) -> dict[str, float | int]:
     """Train ``actor``'s architecture from each of ``seeds`` at once; writes
-    ``ensemble.png`` and ``ensemble_curves.csv``; returns the final losses' mean and std."""
+    ``ensemble.png`` and ``ensemble_curves.csv``; returns the final losses' mean and std.
+    ``draw_ahead`` has no effect here (the ensemble draws every member's masks of a step
+    in one call): as ``train_bc`` where nothing is drawn ahead, a warning says so."""
+    if draw_ahead:
+        log.warning("clone_ensemble: draw_ahead has no effect: the ensemble draws its own masks")
     run_dir = Path(run_dir)
     result = train_bc_ensemble(actor.module.config, list(seeds), train, validation, settings)
     plot_ensemble(result.train_loss, result.validation_loss, run_dir / "ensemble.png", title=title)

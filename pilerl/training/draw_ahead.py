@@ -7,11 +7,14 @@ layers and their widths from the model, and nothing else draws from the global g
 while the epoch runs (the batch order has its own generator). ``MasksAhead`` therefore
 clones the global generator's state, draws each step's masks in the order the forward
 pass would (layer after layer, the same ``empty_like(x).bernoulli_(1 - p).div_(1 - p)``
-that ``torch.nn.functional.dropout`` runs) on a worker thread while the main thread
-computes the previous step, and at the end of the epoch hands the generator's state back
-to the global one. Losses, weights and the saved RNG state are bit-identical to drawing
-in the step (tested). It pays only where a second core is idle: on a loaded machine the
-worker competes with the step for the same cores.
+that ``torch.nn.functional.dropout`` runs on the CPU, with the dtype and device of the
+layer's input, so the scale 1/q is rounded as torch rounds it) on a worker thread while
+the main thread computes the previous step, and at the end of the epoch hands the
+generator's state back to the global one. Losses, weights and the saved RNG state are
+bit-identical to drawing in the step (tested, in float32 and float64). It pays only where
+a second core is idle: on a loaded machine the worker competes with the step for the same
+cores. Layers with p = 0 are left alone: torch's dropout returns their input and draws
+nothing.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from contextlib import contextmanager, suppress
 import torch
 from torch import nn
 
-from .dropout_masks import dropout_layers, restore_dropout
+from .dropout_masks import DropoutSite, dropout_layers, restore_dropout
 
 STEPS_AHEAD = 2  # masks of at most this many steps wait in memory
 
@@ -45,6 +48,11 @@ class _Fed(nn.Module):
                 f"MasksAhead: a mask of shape {tuple(mask.shape)} was drawn for dropout "
                 f"layer {self.index}, which got {tuple(x.shape)}"
             )
+        if mask.dtype != x.dtype or mask.device != x.device:
+            raise RuntimeError(
+                f"MasksAhead: a {mask.dtype} mask on {mask.device} was drawn for dropout "
+                f"layer {self.index}, which got {x.dtype} on {x.device}"
+            )
         return x * mask
 
 
@@ -52,7 +60,7 @@ class MasksAhead:
     """The dropout masks of one epoch's steps, drawn ahead from a clone of the global
     generator (see the module docstring). Use through ``masks_ahead``."""
 
-    def __init__(self, layers: Sequence[tuple[float, tuple[int, ...]]]) -> None:
+    def __init__(self, layers: Sequence[DropoutSite]) -> None:
         self.layers = list(layers)
         self.current: list[torch.Tensor] = []
         self._queue: queue.Queue = queue.Queue(maxsize=STEPS_AHEAD)
@@ -99,13 +107,12 @@ class MasksAhead:
         try:
             for rows in rows_per_step:
                 masks = []
-                for p, shape in self.layers:
-                    if p == 0:  # torch's dropout returns its input: no draw
-                        masks.append(torch.ones(rows, *shape))
-                    elif p == 1:  # multiplied by zero: no draw
-                        masks.append(torch.zeros(rows, *shape))
+                for p, shape, dtype, device in self.layers:
+                    options = {"dtype": dtype, "device": device}  # as empty_like(x)
+                    if p == 1:  # multiplied by zero: no draw
+                        masks.append(torch.zeros(rows, *shape, **options))
                     else:
-                        noise = torch.empty(rows, *shape)
+                        noise = torch.empty(rows, *shape, **options)
                         noise.bernoulli_(1 - p, generator=self._generator).div_(1 - p)
                         masks.append(noise)
                 while not self._stop.is_set():
@@ -122,16 +129,22 @@ class MasksAhead:
 
 @contextmanager
 def masks_ahead(module: nn.Module, run: Callable[[], object]) -> Iterator[MasksAhead | None]:
-    """Within the block, ``module``'s dropout layers take their masks from the returned
-    ``MasksAhead`` (``None`` when ``module`` has no dropout layer: nothing to draw).
-    ``run()`` is a forward pass of one row, to find the layers and their widths."""
-    layers = dropout_layers(module, run)
+    """Within the block, ``module``'s dropout layers with p > 0 take their masks from the
+    returned ``MasksAhead`` (``None`` when it has no such layer: nothing to draw).
+    ``run()`` is a forward pass of one row, to find the layers, their widths and dtypes."""
+    layers = {name: site for name, site in dropout_layers(module, run).items() if site.p > 0}
+    elsewhere = {str(site.device) for site in layers.values() if site.device.type != "cpu"}
+    if elsewhere:  # torch draws there with another generator (and another kernel)
+        raise ValueError(
+            f"masks_ahead: draws torch's CPU dropout masks; the model's dropout runs on "
+            f"{sorted(elsewhere)}"
+        )
     if not layers:
         yield None
         return
     feed = MasksAhead(list(layers.values()))
     replaced = {name: module.get_submodule(name) for name in layers}
-    for i, (name, layer) in enumerate(replaced.items()):
+    for i, (name, layer) in enumerate(replaced.items()):  # in the order they are called
         module.set_submodule(name, _Fed(layer.p, feed, i).train(layer.training))
     try:
         yield feed

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from typing import NamedTuple
 
 import torch
 from torch import nn
@@ -78,7 +79,13 @@ class PackedDropout(nn.Module):
 
 class GivenMaskDropout(nn.Module):
     """Dropout whose multiplier is the buffer ``mask`` (0 or 1/q), set by the caller: how
-    ``torch.func.functional_call`` hands each ensemble member its own mask."""
+    ``torch.func.functional_call`` hands each ensemble member its own mask.
+
+    The mask must have the input's shape (inside ``vmap``: one member's mask and input):
+    one multiplier per element, as torch's dropout draws it. A mask of another shape is
+    refused, naming both shapes, rather than broadcast (a mask of one row broadcast over
+    a batch would drop the same features of every row).
+    """
 
     def __init__(self, p: float) -> None:
         super().__init__()
@@ -90,20 +97,34 @@ class GivenMaskDropout(nn.Module):
             return x
         if self.mask is None:
             raise RuntimeError("GivenMaskDropout: training needs a mask (the buffer 'mask')")
+        if self.mask.shape != x.shape:
+            raise ValueError(
+                f"GivenMaskDropout: the mask has shape {tuple(self.mask.shape)}, the input "
+                f"{tuple(x.shape)}; they must be equal (one multiplier per element)"
+            )
         return x * self.mask
 
 
-def dropout_layers(
-    module: nn.Module, run: Callable[[], object]
-) -> dict[str, tuple[float, tuple[int, ...]]]:
+class DropoutSite(NamedTuple):
+    """What one dropout layer sees: its drop probability and its input's row shape, dtype
+    and device (the mask torch's dropout draws there is ``empty_like`` its input)."""
+
+    p: float
+    shape: tuple[int, ...]  # one row's features
+    dtype: torch.dtype
+    device: torch.device
+
+
+def dropout_layers(module: nn.Module, run: Callable[[], object]) -> dict[str, DropoutSite]:
     """Each ``nn.Dropout`` of ``module`` that ``run()`` (a forward pass of one row) calls, in
-    the order it is called: name -> (p, the shape of one row's features there). Runs in
-    eval mode (no draws) and without gradients; the mode is put back."""
-    found: dict[str, tuple[float, tuple[int, ...]]] = {}
+    the order it is called: name -> its ``DropoutSite``. Runs in eval mode (no draws) and
+    without gradients; the mode is put back."""
+    found: dict[str, DropoutSite] = {}
 
     def record(name: str):
         def hook(layer: nn.Module, inputs: tuple[torch.Tensor, ...], _) -> None:
-            found.setdefault(name, (layer.p, tuple(inputs[0].shape[1:])))
+            x = inputs[0]
+            found.setdefault(name, DropoutSite(layer.p, tuple(x.shape[1:]), x.dtype, x.device))
 
         return hook
 

@@ -46,6 +46,7 @@ from .bc import EVAL_BATCH, BCSettings
 from .dropout_masks import GivenMaskDropout, dropout_layers, packed_keep_masks, replace_dropout
 
 MEMBERS_PER_PASS = 16  # members trained together (see the module docstring)
+DEFAULT_DROPOUT_MASKS = "packed"  # the masks when BCSettings.dropout_masks is None
 
 
 @dataclass
@@ -112,8 +113,8 @@ def _train_pass(
     base = copy.deepcopy(members[0]).to("meta")
     readings, target = _readings(members[0], train)
     val = _readings(members[0], validation) if validation is not None else None
-    dropouts = {}  # packed masks: dropout layer -> (p, the shape of one row's features)
-    if (settings.dropout_masks or "packed") == "packed":
+    dropouts = {}  # packed masks: dropout layer -> its DropoutSite (p, one row's shape)
+    if (settings.dropout_masks or DEFAULT_DROPOUT_MASKS) == "packed":
         dropouts = dropout_layers(members[0], lambda: members[0](*readings[:1].split(1, dim=-1)))
         replace_dropout(base, GivenMaskDropout)
 
@@ -140,8 +141,8 @@ def _train_pass(
         for start in range(0, n, settings.batch_size):
             idx = order[start : start + settings.batch_size]
             masks = {
-                f"{name}.mask": packed_keep_masks([(len(seeds), len(idx), *shape)], p)[0]
-                for name, (p, shape) in dropouts.items()
+                f"{name}.mask": packed_keep_masks([(len(seeds), len(idx), *site.shape)], site.p)[0]
+                for name, site in dropouts.items()
             }
             losses = losses_of(params, buffers | masks, readings[idx], target[idx])
             optimizer.zero_grad()

@@ -19,6 +19,7 @@ from pilerl.policies.settings import PolicyConfig, SensorsConfig, check_controll
 from pilerl.sim.settings import EnvConfig
 
 from .bc import BCSettings
+from .dropout_masks import DROPOUT_MASKS
 
 SELECTIONS = ("final", "best")  # the pipeline's cloned controller: bc/final.pt or bc/best.pt
 
@@ -42,6 +43,15 @@ class TrainBCConfig:
             controller's default (NNet: Levenberg-Marquardt).
         ensemble_seeds: > 1 trains that many seeds at once (``torch.func``) and plots
             mean +- std curves (the paper's Fig. 4) instead of one model.
+        dropout_masks: how dropout draws its masks in training (``BCSettings``):
+            ``bernoulli`` (torch's own draws), ``packed`` (cheaper draws of the same
+            distribution: other weights for the same seed); ``None`` = the trainer's
+            default: ``bernoulli`` for one model (the weights it always gave), ``packed``
+            for an ensemble.
+        draw_ahead: draw torch's masks a step ahead on a second thread
+            (``pilerl.training.draw_ahead``): the same results, faster only where a second
+            core is idle. Not with ``dropout_masks: packed``; where nothing is drawn ahead
+            (Levenberg-Marquardt, no dropout, the forest, an ensemble) a warning says so.
         env, evaluation: the closed-loop test of the trained controller (the last step;
             ``evaluation.episodes: 0`` skips it), written to ``<run dir>/evaluation``.
     """
@@ -58,6 +68,8 @@ class TrainBCConfig:
     logger: LoggerConfig = field(default_factory=LoggerConfig)
     trainer: str | None = None
     ensemble_seeds: int = 1
+    dropout_masks: str | None = None
+    draw_ahead: bool = False
     env: EnvConfig = field(default_factory=EnvConfig)
     evaluation: ClosedLoopConfig = field(default_factory=lambda: ClosedLoopConfig(episodes=0))
     output_dir: str = MISSING
@@ -78,6 +90,16 @@ class TrainBCConfig:
         if self.trainer is not None:
             checks.one_of("trainer", self.trainer, TRAINERS)
         checks.positive_int("ensemble_seeds", self.ensemble_seeds)
+        if self.dropout_masks is not None and self.dropout_masks not in DROPOUT_MASKS:
+            raise ValueError(
+                f"dropout_masks: unknown {self.dropout_masks!r}; known: {list(DROPOUT_MASKS)} "
+                "(null = the trainer's default)"
+            )
+        if self.draw_ahead and self.dropout_masks == "packed":
+            raise ValueError(
+                "draw_ahead: draws torch's bernoulli masks ahead, dropout_masks=packed asks "
+                "for packed ones; set draw_ahead=false or dropout_masks=bernoulli"
+            )
         self.evaluation.condition_names(self.env)
         if self.ensemble_seeds > 1 and self.evaluation.episodes > 0:
             raise ValueError(

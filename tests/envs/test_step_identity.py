@@ -28,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch
+from pilerl_pile_loader.open_loop import scripted_action  # in, lift from 3 s, curl from 6 s
 
 import pilerl  # noqa: F401  (registers pilerl/PileLoading-v0)
 from pilerl.sim.rollout import make_rollout_env, rollout, sensor_names
@@ -58,16 +59,6 @@ INFO_KEYS = (
     "reward_energy",
     "reward_success",
 )
-
-
-def scripted_action(step: int) -> np.ndarray:
-    """[boom, bucket, throttle] of control step ``step`` (20 Hz): in, then lift and curl."""
-    t = step * 0.05
-    if t < 3.0:
-        return np.array([0.0, 0.0, 0.8], np.float32)
-    if t < 6.0:
-        return np.array([0.5, 0.3, 0.5], np.float32)
-    return np.array([0.8, 1.0, 0.1], np.float32)
 
 
 def scoop_trace(case: str) -> dict[str, np.ndarray]:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import torch
+from pilerl_pile_loader import open_loop
 from pilerl_pile_loader.task import ScoopTask
 
 import pilerl  # noqa: F401  (registers pilerl/PileLoading-v0)
@@ -32,15 +33,13 @@ SEED = 21
 STEPS = 150  # 7.5 s at 20 Hz: drive in, penetrate, lift, curl
 
 
+CURL_FROM_S = 5.5  # the script curls from 5.5 s (the step-identity traces: 6 s)
+
+
 def scripted_action(step: int, phase: int) -> np.ndarray:
-    """[boom, bucket, throttle]: drive in, then lift and curl; ``phase`` shifts the script
-    (control steps) so the batch's simulators are in different phases of a scoop."""
-    t = (step + phase) * 0.05
-    if t < 3.0:
-        return np.array([0.0, 0.0, 0.8], np.float32)
-    if t < 5.5:
-        return np.array([0.5, 0.3, 0.5], np.float32)
-    return np.array([0.8, 1.0, 0.1], np.float32)
+    """The open-loop scoop (``pilerl_pile_loader.open_loop``), ``phase`` steps ahead so the
+    batch's simulators are in different phases of a scoop."""
+    return open_loop.scripted_action(step, phase=phase, curl_from_s=CURL_FROM_S)
 
 
 def alone_trace(kwargs: dict, seed: int, actions: list[np.ndarray | None]) -> list[tuple]:

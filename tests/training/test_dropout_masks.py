@@ -7,7 +7,9 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from pilerl.training.draw_ahead import masks_ahead
 from pilerl.training.dropout_masks import (
+    GivenMaskDropout,
     PackedDropout,
     dropout_masks,
     packed_keep_masks,
@@ -86,8 +88,6 @@ def test_dropout_masks_swap_the_layers_and_put_them_back():
 
 
 def test_masks_drawn_ahead_are_torchs_draws_in_order():
-    from pilerl.training.draw_ahead import masks_ahead
-
     def model() -> nn.Sequential:
         torch.manual_seed(0)
         return nn.Sequential(nn.Linear(3, 8), nn.Dropout(0.35), nn.Linear(8, 5), nn.Dropout(0.5))
@@ -101,7 +101,8 @@ def test_masks_drawn_ahead_are_torchs_draws_in_order():
 
     ahead = model().train()
     with masks_ahead(ahead, lambda: ahead(inputs[0][:1])) as feed:
-        assert feed is not None and feed.layers == [(0.35, (8,)), (0.5, (5,))]
+        assert feed is not None
+        assert [(site.p, site.shape) for site in feed.layers] == [(0.35, (8,)), (0.5, (5,))]
         torch.manual_seed(4)
         feed.start_epoch(rows)
         for x, want in zip(inputs, expected, strict=True):
@@ -114,3 +115,58 @@ def test_masks_drawn_ahead_are_torchs_draws_in_order():
         with pytest.raises(RuntimeError, match=r"drawn for dropout layer 0, which got \(7, 8\)"):
             ahead(inputs[0])
     assert [type(m) for m in ahead] == [nn.Linear, nn.Dropout, nn.Linear, nn.Dropout]
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_masks_drawn_ahead_have_the_dtype_and_device_torchs_dropout_uses(dtype):
+    """torch's dropout draws ``empty_like(x)``: a float64 input gets a float64 mask (its
+    scale 1/q rounded in float64), a float32 one float32; the masks drawn ahead are the
+    same, so the outputs are bit-identical in both."""
+
+    def model() -> nn.Sequential:
+        torch.manual_seed(0)
+        layers = nn.Sequential(nn.Linear(3, 8), nn.Dropout(0.35), nn.Linear(8, 5), nn.Dropout(0))
+        return layers.to(dtype).train()
+
+    x = torch.randn(6, 3, dtype=dtype)
+    reference = model()
+    torch.manual_seed(2)
+    expected = reference(x)
+    ahead = model()
+    with masks_ahead(ahead, lambda: ahead(x[:1])) as feed:
+        assert isinstance(ahead[3], nn.Dropout)  # p = 0: torch draws nothing, left alone
+        torch.manual_seed(2)
+        feed.start_epoch([6])
+        feed.next_step()
+        (mask,) = feed.current
+        assert (mask.dtype, mask.device) == (x.dtype, x.device)
+        assert torch.equal(ahead(x), expected)
+        feed.end_epoch()
+        feed.start_epoch([6])
+        feed.next_step()
+        with pytest.raises(RuntimeError, match=r"mask on cpu was drawn for dropout layer 0"):
+            ahead[1](torch.ones(6, 8, dtype=torch.float16))
+    no_dropout = nn.Sequential(nn.Linear(3, 2), nn.Dropout(0.0))
+    with masks_ahead(no_dropout, lambda: no_dropout(torch.ones(1, 3))) as feed:
+        assert feed is None  # nothing to draw ahead
+
+
+def test_given_mask_dropout_refuses_a_mask_of_another_shape():
+    """The mask is one multiplier per element: a mask that would broadcast (one row for a
+    batch, or a member's mask against another width) is refused, naming both shapes, also
+    inside ``vmap`` as the ensemble calls it."""
+    layer = GivenMaskDropout(0.5).train()
+    x = torch.arange(12.0).view(4, 3)
+    layer.mask = torch.tensor([2.0, 0.0, 2.0]).expand(4, 3).clone()
+    assert torch.equal(layer(x), x * layer.mask)
+    layer.mask = torch.tensor([[2.0, 0.0, 2.0]])
+    with pytest.raises(ValueError, match=r"mask has shape \(1, 3\), the input \(4, 3\)"):
+        layer(x)
+
+    def member(mask: torch.Tensor) -> torch.Tensor:
+        return torch.func.functional_call(layer, {"mask": mask}, (x,))
+
+    members = torch.func.vmap(member, randomness="different")
+    assert members(torch.ones(2, 4, 3)).shape == (2, 4, 3)
+    with pytest.raises(ValueError, match=r"mask has shape \(4, 1\), the input \(4, 3\)"):
+        members(torch.ones(2, 4, 1))

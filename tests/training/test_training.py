@@ -93,6 +93,35 @@ def test_packed_dropout_masks_train_deterministically_and_resume(datasets, tmp_p
         run(4, "bernoulli", tmp_path)
 
 
+def test_resume_takes_none_and_bernoulli_for_the_same_masks(datasets, tmp_path):
+    """dropout_masks None and "bernoulli" are both torch's draws in train_bc: a run started
+    with one resumes with the other (to the weights of a straight run); packed is refused,
+    the differing key named."""
+    _, train, validation = datasets
+    data = train.to_tensordict()
+
+    def run(epochs: int, masks: str | None, run_dir: Path | None = None):
+        torch.manual_seed(3)
+        actor = make_actor("dannet", sensors=S, stats=train.stats)
+        settings = BCSettings(epochs=epochs, batch_size=64, seed=3, dropout_masks=masks)
+        return train_bc(actor, data, validation, settings, run_dir=run_dir, progress=False)
+
+    straight, expected = run(3, None)
+    want = straight.module.state_dict()
+    for first, then in ((None, "bernoulli"), ("bernoulli", None)):
+        run_dir = tmp_path / f"{first}_then_{then}"
+        run(2, first, run_dir)  # "killed" after 2 epochs
+        resumed, history = run(3, then, run_dir)
+        assert history == expected
+        assert all(torch.equal(resumed.module.state_dict()[k], want[k]) for k in want)
+        with pytest.raises(ValueError, match=r"differ in \['dropout_masks'\]"):
+            run(4, "packed", run_dir)
+    run(2, "packed", tmp_path / "packed")
+    for masks in (None, "bernoulli"):
+        with pytest.raises(ValueError, match=r"'packed'.*differ in \['dropout_masks'\]"):
+            run(3, masks, tmp_path / "packed")
+
+
 def test_resume_refuses_a_run_directory_of_another_model(datasets, tmp_path):
     _, train, validation = datasets
     data = train.to_tensordict()
@@ -235,6 +264,63 @@ def test_train_bc_recipe_writes_checkpoints_logs_and_plot(datasets, tmp_path):
     assert bad.returncode != 0 and "not a pilerl dataset" in bad.stderr
 
 
+def test_train_bc_recipe_chooses_the_dropout_masks_and_draws_ahead(datasets, tmp_path, monkeypatch):
+    """The recipe's dropout_masks and draw_ahead keys reach the training; null and
+    bernoulli are the same run (also for a run directory recorded before the key), packed
+    another; a bad name or combination exits non-zero naming the key, writing nothing."""
+    root, _, _ = datasets
+
+    def train(name: str, *overrides: str, policy: str = "dannet"):
+        run_dir = f"hydra.run.dir={tmp_path / name}"
+        common = ("epochs=2", "batch_size=64", f"policy={policy}", "logger=none")
+        return train_bc_recipe(run_dir, *common, *overrides, data_root=root)
+
+    def metrics(name: str) -> dict:
+        return json.loads((tmp_path / name / "metrics.json").read_text())
+
+    def skipped(result) -> bool:
+        return result.returncode == 0 and "already finished" in result.stdout + result.stderr
+
+    assert train("default").returncode == 0
+    drawn = []  # the masks are drawn ahead: draw_ahead reaches train_bc
+    next_step = MasksAhead.next_step
+    monkeypatch.setattr(MasksAhead, "next_step", lambda feed: drawn.append(1) or next_step(feed))
+    assert train("ahead", "draw_ahead=true").returncode == 0
+    monkeypatch.undo()
+    assert drawn and metrics("ahead") == metrics("default")  # torch's draws: the same run
+    assert train("packed", "dropout_masks=packed").returncode == 0
+    assert metrics("packed")["train_loss"] != metrics("default")["train_loss"]
+
+    assert skipped(train("default", "dropout_masks=bernoulli"))  # what null stands for
+    assert skipped(train("default", "draw_ahead=true"))  # the same results
+    refused = train("default", "dropout_masks=packed")
+    assert refused.returncode != 0 and "dropout_masks: 'bernoulli' -> 'packed'" in refused.stderr
+    record_path = tmp_path / "default" / "run.json"  # as recorded before the key existed
+    record = json.loads(record_path.read_text())
+    del record["settings"]["dropout_masks"]
+    record_path.write_text(json.dumps(record))
+    assert skipped(train("default"))
+    assert train("default", "dropout_masks=packed").returncode != 0
+
+    # an ensemble draws packed masks unless told; it draws nothing ahead and says so
+    assert train("ensemble", "ensemble_seeds=2", policy="annet").returncode == 0
+    ahead = train("ensemble_ahead", "ensemble_seeds=2", "draw_ahead=true", policy="annet")
+    assert ahead.returncode == 0 and "draw_ahead has no effect" in ahead.stdout + ahead.stderr
+    assert metrics("ensemble_ahead") == metrics("ensemble")
+    masks = "dropout_masks=bernoulli"
+    assert train("ensemble_torch", "ensemble_seeds=2", masks, policy="annet").returncode == 0
+    assert metrics("ensemble_torch") != metrics("ensemble")
+
+    for overrides, message in (
+        (["dropout_masks=fast"], "dropout_masks: unknown 'fast'; known: ['bernoulli', 'packed']"),
+        (["dropout_masks=packed", "draw_ahead=true"], "draw_ahead: draws torch's bernoulli"),
+    ):
+        bad = train("bad", *overrides)
+        assert bad.returncode != 0 and message in bad.stderr, bad.stderr[-2000:]
+        written = {path.name for path in (tmp_path / "bad").iterdir()}
+        assert written <= {".hydra", "train_bc.log"}, written  # Hydra's own files only
+
+
 def test_nnet_trains_with_levenberg_marquardt_by_default_and_beats_gradient(datasets):
     _, train, validation = datasets
     data, losses = train.to_tensordict(), {}
@@ -355,6 +441,36 @@ def test_masks_drawn_ahead_give_the_same_run(datasets, tmp_path, monkeypatch):
             make_actor("dannet", sensors=S, stats=train.stats), data, None,
             BCSettings(epochs=1, dropout_masks="packed"), progress=False, draw_ahead=True,
         )  # fmt: skip
+
+
+def test_draw_ahead_with_nothing_to_draw_trains_as_without_and_warns_once(datasets, caplog):
+    """draw_ahead where no dropout mask is drawn by a gradient step (NNet's default
+    Levenberg-Marquardt, a controller without dropout, the forest's fit): the same run as
+    without it, and one warning per call that it has no effect (not an error: it cannot
+    change a result, and a sweep over controllers would stop on NNet)."""
+    _, train, validation = datasets
+    data = train.to_tensordict()
+    cases = {
+        "levenberg_marquardt trainer's steps are not drawn ahead": ("nnet", {}),
+        "'nnetv2' has no dropout layer with p > 0": ("nnetv2", {"dropout": 0.0}),
+        "the random forest is fitted": ("rf", {"n_estimators": 2}),
+    }
+    for reason, (controller, options) in cases.items():
+        runs = []
+        for draw_ahead in (False, True):
+            torch.manual_seed(5)
+            actor = make_actor(controller, sensors=S, stats=train.stats, options=options)
+            caplog.clear()
+            _, history = train_bc(
+                actor, data, validation, BCSettings(epochs=2, batch_size=64), progress=False,
+                draw_ahead=draw_ahead,
+            )  # fmt: skip
+            warnings = [r.getMessage() for r in caplog.records if "draw_ahead" in r.getMessage()]
+            runs.append((history, warnings))
+        (plain, none), (ahead, warned) = runs
+        assert ahead == plain and none == []
+        assert len(warned) == 1 and "draw_ahead has no effect" in warned[0], warned
+        assert reason in warned[0], warned
 
 
 def test_ensemble_members_equal_separate_runs(datasets):
