@@ -23,16 +23,15 @@ from pilerl.config import register_configs
 from pilerl.data import EpisodeStore
 from pilerl.evaluation.evaluator import ActorController, success_metrics
 from pilerl.evaluation.stage import closed_loop_plan, evaluate_controller
-from pilerl.policies import controller_inputs
 from pilerl.recipe import Run, recipe
 from pilerl.rendering import resolve_videos
 from pilerl.training.clone import (
     bc_objective,
     bc_settings,
+    begin_bc_run,
     clone,
     clone_ensemble,
     cloning_actor,
-    drawn_masks,
 )
 from pilerl.training.settings import TrainBCConfig
 
@@ -84,28 +83,13 @@ def main(config: TrainBCConfig, run: Run) -> dict[str, float]:
     )
 
     # --- this run directory: skip when finished, refuse another config or dataset
-    rates = sorted({meta.rate_hz for meta in train_store.episodes})  # the control rate
-    masks = drawn_masks(config.dropout_masks, ensemble_seeds=config.ensemble_seeds)
-    default_masks = drawn_masks(None, ensemble_seeds=config.ensemble_seeds)
-    run.begin(
-        settings=run.settings | {"dropout_masks": masks},  # null: the name it stands for
-        added={"dropout_masks": default_masks},  # what runs recorded before the key drew
-        inputs={"train_data": config.train_data, "validation_data": config.validation_data},
-        control_hz=rates[0] if len(rates) == 1 else rates,
-        sensors=controller_inputs(policy.name, sensors.s, sensors.s_prime)[0],
-    )
+    begin_bc_run(run, config, train_store)
+    ahead = config.draw_ahead  # torch's dropout masks drawn on a second thread
     if config.ensemble_seeds > 1:  # many seeds at once: curves, not a deployable model
         seeds = range(config.seed, config.seed + config.ensemble_seeds)
         title = f"{policy.name}, {len(seeds)} seeds"
         return clone_ensemble(
-            actor,
-            seeds,
-            train,
-            validation,
-            settings,
-            run.dir,
-            title=title,
-            draw_ahead=config.draw_ahead,
+            actor, seeds, train, validation, settings, run.dir, title=title, draw_ahead=ahead
         )
 
     # --- one model, then the trained controller in closed loop
@@ -118,7 +102,7 @@ def main(config: TrainBCConfig, run: Run) -> dict[str, float]:
         run.dir,
         logger_backend=config.logger.backend,
         title=title,
-        draw_ahead=config.draw_ahead,
+        draw_ahead=ahead,
     )
     log.info("%s: %s", run.dir, metrics)
     if config.evaluation.episodes > 0:

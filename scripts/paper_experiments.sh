@@ -9,8 +9,9 @@
 #   bash scripts/paper_experiments.sh report   # docs/results/paper from whatever has finished
 #
 # A and B may run at the same time (one core each), after prep; C after A's Exp. 3 (the
-# particle pile runs about 1x real time, so C evaluates the same controllers on summer and
-# winter_c only, 4 episodes per seed: about an hour on one core). Run from the repository root;
+# particle pile runs about 0.6x real time on an idle core, so C evaluates the same
+# controllers on summer and winter_c only, 4 episodes per seed: about 1.5 hours on one
+# core; a third process on a 2-core machine, so better after A or B). Run from the repository root;
 # PYTHON defaults to .venv/bin/python, NICE to 10. Each step's output goes to
 # logs/paper_experiments/<step>.out and its start and end to logs/paper_experiments/steps.log.
 set -u

@@ -1,6 +1,7 @@
 """Controllers evaluated on two soil models: rank agreement and success gaps.
 
-The input is a sweep of ``recipes/evaluate.py`` over checkpoints and ``env.soil`` (see
+The input is one or more sweeps of ``recipes/evaluate.py`` over checkpoints and
+``env.soil``, e.g. one per soil model (see
 docs/experiments.md, "Held-out conditions and the cross-soil check"). Each job names its
 checkpoint; a checkpoint inside a ``train_bc`` job directory gives the controller, sensor
 set, dataset and training seed (``results.job_setup``), so the training seeds of one
@@ -16,8 +17,9 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 from pilerl.runs import read_run_settings
 from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
@@ -38,14 +40,40 @@ class SoilCells:
     """Cells of evaluation sweeps keyed ``(controller, sensors, dataset, test)``, per soil.
 
     ``pooled_conditions``: the conditions every finished job evaluated, pooled into the
-    ``EVERY_CONDITION`` test, so that soils evaluated on different condition lists (a slow
-    soil model on fewer) are compared on the same conditions.
+    ``EVERY_CONDITION`` test (absent when there is none), so that soils evaluated on
+    different condition lists (a slow soil model on fewer) are compared on the same
+    conditions. ``members``: per soil and test, the conditions the test pooled in that
+    soil's jobs (one tuple per distinct set), so that a group is compared across soils only
+    where it holds the same conditions (``winter`` may be A-D on one soil, C on the other).
     """
 
     by_soil: dict[str, dict[tuple[str, str, str, str], Cell]]
     finished: list[Path]
     unfinished: list[Path]
     pooled_conditions: tuple[str, ...] = ()
+    members: dict[str, dict[str, set[tuple[str, ...]]]] = field(default_factory=dict)
+
+    def comparable(self, soils: tuple[str, str], test: str) -> str | None:
+        """Why ``test`` cannot be compared between ``soils`` (``None``: it can)."""
+        pooled = [self.members.get(soil, {}).get(test, set()) for soil in soils]
+        if any(len(p) != 1 for p in pooled) or pooled[0] != pooled[1]:
+            described = "; ".join(
+                f"{soil}: {' / '.join(', '.join(m) for m in sorted(p)) or 'not evaluated'}"
+                for soil, p in zip(soils, pooled, strict=True)
+            )
+            return f"test {test!r} pools other conditions on each soil ({described})"
+        return None
+
+
+class EvaluateJob(NamedTuple):
+    """One finished evaluate job of a cross-soil sweep."""
+
+    soil: str
+    controller: Controller
+    setup: JobSetup
+    results: dict[str, TestResult]
+    conditions: tuple[str, ...]  # the simulator's conditions, in declared order
+    groups: dict[str, tuple[str, ...]]  # the simulator's condition groups
 
 
 def controller_of(checkpoint: str | None, name: str | None) -> tuple[Controller, int]:
@@ -75,7 +103,7 @@ def soil_cells(sweep_dirs: str | Path | Sequence[str | Path]) -> SoilCells:
     one per soil model): its soil, controller and results."""
     if isinstance(sweep_dirs, (str, Path)):
         sweep_dirs = [sweep_dirs]
-    jobs = []  # (soil, controller, setup, results, the simulator's conditions in order)
+    jobs: list[EvaluateJob] = []
     finished, unfinished = [], []
     for job_dir in sorted({job for d in sweep_dirs for job in job_directories(d)}):
         config = read_run_settings(job_dir) or read_config(job_dir)
@@ -90,27 +118,48 @@ def soil_cells(sweep_dirs: str | Path | Sequence[str | Path]) -> SoilCells:
             unfinished.append(job_dir)
             continue
         finished.append(job_dir)
-        simulator = env.get("simulator", DEFAULT_SIMULATOR)
+        simulator = get_simulator(env.get("simulator", DEFAULT_SIMULATOR))
         setup = JobSetup(job_dir, *controller, seed=seed, config=config)
-        jobs.append((soil, controller, setup, results, get_simulator(simulator).conditions))
-    shared = [
+        groups = dict(simulator.condition_groups)
+        jobs.append(EvaluateJob(soil, controller, setup, results, simulator.conditions, groups))
+    shared = tuple(
         condition
-        for condition in (jobs[0][4] if jobs else ())
-        if all(condition in results for *_, results, _ in jobs)
-    ]
+        for condition in (jobs[0].conditions if jobs else ())
+        if all(condition in job.results for job in jobs)
+    )
     parts: dict[str, dict[tuple, list]] = defaultdict(lambda: defaultdict(list))
-    for soil, controller, setup, results, _ in jobs:
-        results[EVERY_CONDITION] = pool_conditions(results, shared)
-        for test, result in results.items():
-            parts[soil][(*controller, test)].append((setup, result))
+    pooled: dict[str, dict[str, set[tuple[str, ...]]]] = defaultdict(lambda: defaultdict(set))
+    for job in jobs:
+        if shared:
+            job.results[EVERY_CONDITION] = pool_conditions(job.results, shared)
+        for test, result in job.results.items():
+            parts[job.soil][(*job.controller, test)].append((job.setup, result))
+            pooled[job.soil][test].add(pooled_members(test, job, shared))
     by_soil = {
         soil: {key: pool_seeds(members, cell=(soil, *key)) for key, members in cells.items()}
         for soil, cells in parts.items()
     }
-    return SoilCells(by_soil, finished, unfinished, tuple(shared))
+    return SoilCells(
+        by_soil,
+        finished,
+        unfinished,
+        shared,
+        {soil: dict(tests) for soil, tests in pooled.items()},
+    )
 
 
-def pool_conditions(results: dict[str, TestResult], conditions) -> TestResult:
+def pooled_members(test: str, job: EvaluateJob, shared: tuple[str, ...]) -> tuple[str, ...]:
+    """The conditions one job's ``test`` pooled: a condition itself, a group's evaluated
+    members (``winter`` on winter_c alone is (winter_c,)), the shared ones for
+    ``EVERY_CONDITION``."""
+    if test == EVERY_CONDITION:
+        return shared
+    if test in job.groups:
+        return tuple(c for c in job.groups[test] if c in job.results)
+    return (test,)
+
+
+def pool_conditions(results: dict[str, TestResult], conditions: Sequence[str]) -> TestResult:
     """One job's episodes over every evaluated condition (groups left out: no double count)."""
     own = [r for test, r in results.items() if test in conditions]
     modes: dict[str, int] = {}
@@ -178,6 +227,9 @@ def soil_agreement(
     for soil in soils:
         if soil not in cells.by_soil:
             raise ValueError(f"soil {soil!r} not evaluated; evaluated: {sorted(cells.by_soil)}")
+    reason = cells.comparable(soils, test)
+    if reason is not None:
+        raise ValueError(f"{reason}: not compared")
     first, second = (cells.by_soil[s] for s in soils)
     controllers = sorted(k[:3] for k in first.keys() & second.keys() if k[3] == test)
     if len(controllers) < 2:

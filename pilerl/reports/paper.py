@@ -3,7 +3,7 @@
     python -m pilerl.reports.paper \\
         --exp1 multirun/exp1_summer_to_winter --exp2 multirun/exp2_data_and_pt \\
         --exp3 multirun/exp3_attention --exp4 multirun/exp4_offline_validation \\
-        --cross-soil multirun/cross_soil \\
+        --cross-soil multirun/cross_soil_heightfield multirun/cross_soil_particles \\
         --figure-actor DANNet=<job>/best.pt --figure-demos data/demos/winter_c_validation \\
         --out docs/results/paper
 
@@ -511,7 +511,8 @@ def add_cross_soil(report: Report, sweep_dirs: Sequence[Path]) -> None:
         f"{', '.join(f'`{d}`' for d in sweep_dirs)}: {len(cells.finished)} finished "
         f"evaluation jobs on the soil models {', '.join(soils) or 'none'}; every "
         "controller's training seeds pooled [lowest–highest seed]. 'every condition' pools "
-        f"the conditions every job evaluated: {', '.join(cells.pooled_conditions) or 'none'}."
+        "the conditions every job evaluated: "
+        f"{', '.join(cells.pooled_conditions) or 'none (so no such column)'}."
     )
     if cells.unfinished:
         report.paragraph(
@@ -533,12 +534,18 @@ def add_cross_soil(report: Report, sweep_dirs: Sequence[Path]) -> None:
         )
     )
     shared = set.intersection(*({k[3] for k in cells.by_soil[s]} for s in pair))
-    agreements = []
+    agreements, not_compared = [], []
     for test in [EVERY_CONDITION, *test_order(shared - {EVERY_CONDITION})]:
+        reason = cells.comparable(pair, test)
+        if reason is not None:
+            not_compared.append(reason)
+            continue
         try:
             agreements.append(soil_agreement(cells, pair, test))
         except ValueError:
             continue  # fewer than two controllers on both soils
+    if not_compared:
+        report.paragraph("Not compared: " + "; ".join(not_compared) + ".")
     if not agreements:
         report.paragraph("Fewer than two controllers on both soils: no rank agreement.")
         return
@@ -643,7 +650,20 @@ def build_report(
     figure_demos: Path | None = None,
     notes: list[str] | None = None,
 ) -> tuple[Path, Path]:
-    """Write ``report.md``, ``report.html`` and the figures to ``out_dir``."""
+    """Write ``report.md``, ``report.html`` and the figures to ``out_dir``.
+
+    Every sweep directory is checked before anything is written: a mistyped one raises
+    ``FileNotFoundError`` and leaves ``out_dir`` as it was.
+    """
+    if cross_soil is None:
+        cross_soil_dirs = []
+    elif isinstance(cross_soil, (str, Path)):
+        cross_soil_dirs = [Path(cross_soil)]
+    else:
+        cross_soil_dirs = [Path(d) for d in cross_soil]
+    for given in [exp1, exp2, exp3, exp4, *cross_soil_dirs]:
+        if given is not None and not Path(given).is_dir():
+            raise FileNotFoundError(f"{given}: no such sweep directory")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     report = Report("The paper's experiments in simulation")
@@ -675,9 +695,8 @@ def build_report(
         report.blocks[glance_at:glance_at] = at_a_glance(compared).blocks
     if exp4 is not None:
         add_offline_validation(report, Path(exp4), out_dir)
-    if cross_soil is not None:
-        sweeps = [cross_soil] if isinstance(cross_soil, (str, Path)) else list(cross_soil)
-        add_cross_soil(report, [Path(d) for d in sweeps])
+    if cross_soil_dirs:
+        add_cross_soil(report, cross_soil_dirs)
     if figure_actors and figure_demos is not None:
         add_controller_figures(report, out_dir, actors=figure_actors, demos=Path(figure_demos))
     return report.write(out_dir)

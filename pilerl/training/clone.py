@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import torch
 from tensordict import TensorDict
@@ -21,10 +22,17 @@ from pilerl.layout import RunLayout
 from pilerl.loggers import make_logger
 from pilerl.policies import controller_inputs, get_spec, make_actor, save_actor
 
-from . import bc, ensemble
+from .bc import DEFAULT_DROPOUT_MASKS as BC_DEFAULT_MASKS
 from .bc import BCSettings, epochs_for_steps, train_bc
+from .ensemble import DEFAULT_DROPOUT_MASKS as ENSEMBLE_DEFAULT_MASKS
 from .ensemble import train_bc_ensemble, write_ensemble_curves
 from .plots import plot_ensemble, plot_losses
+
+if TYPE_CHECKING:
+    from pilerl.data import EpisodeStore
+    from pilerl.recipe import Run
+
+    from .settings import TrainBCConfig
 
 log = logging.getLogger(__name__)
 
@@ -84,7 +92,23 @@ def drawn_masks(dropout_masks: str | None, *, ensemble_seeds: int) -> str:
     so that ``null`` and the name it stands for are the same run."""
     if dropout_masks is not None:
         return dropout_masks
-    return (ensemble if ensemble_seeds > 1 else bc).DEFAULT_DROPOUT_MASKS
+    return ENSEMBLE_DEFAULT_MASKS if ensemble_seeds > 1 else BC_DEFAULT_MASKS
+
+
+def begin_bc_run(run: Run, config: TrainBCConfig, train_store: EpisodeStore) -> None:
+    """Record a ``train_bc`` run in its directory, or stop there (``Run.begin``): a finished
+    run is skipped, another config or dataset refused. The record holds the dropout masks
+    drawn (``null`` as the name it stands for, and runs recorded before the key as the
+    default they drew), the datasets' fingerprints, the control rate and the inputs."""
+    rates = sorted({meta.rate_hz for meta in train_store.episodes})  # the control rate
+    masks = drawn_masks(config.dropout_masks, ensemble_seeds=config.ensemble_seeds)
+    run.begin(
+        settings=run.settings | {"dropout_masks": masks},
+        added={"dropout_masks": drawn_masks(None, ensemble_seeds=config.ensemble_seeds)},
+        inputs={"train_data": config.train_data, "validation_data": config.validation_data},
+        control_hz=rates[0] if len(rates) == 1 else rates,
+        sensors=controller_inputs(config.policy.name, config.sensors.s, config.sensors.s_prime)[0],
+    )
 
 
 def clone(

@@ -53,6 +53,14 @@ class _Fed(nn.Module):
                 f"MasksAhead: a {mask.dtype} mask on {mask.device} was drawn for dropout "
                 f"layer {self.index}, which got {x.dtype} on {x.device}"
             )
+        if not x.is_contiguous():
+            # torch draws into empty_like(x), which keeps x's memory layout: the same
+            # generator fills another element order, so drawn-ahead masks would differ
+            raise RuntimeError(
+                f"MasksAhead: dropout layer {self.index} got a non-contiguous input "
+                f"(strides {x.stride()} for shape {tuple(x.shape)}); masks drawn ahead are "
+                "only bit-identical for contiguous inputs: train without draw_ahead"
+            )
         return x * mask
 
 

@@ -95,7 +95,8 @@ class TrainBCConfig:
                 f"dropout_masks: unknown {self.dropout_masks!r}; known: {list(DROPOUT_MASKS)} "
                 "(null = the trainer's default)"
             )
-        if self.draw_ahead and self.dropout_masks == "packed":
+        # an ensemble draws its own masks (draw_ahead only warns there): one model only
+        if self.draw_ahead and self.dropout_masks == "packed" and self.ensemble_seeds == 1:
             raise ValueError(
                 "draw_ahead: draws torch's bernoulli masks ahead, dropout_masks=packed asks "
                 "for packed ones; set draw_ahead=false or dropout_masks=bernoulli"

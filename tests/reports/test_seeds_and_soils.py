@@ -311,6 +311,69 @@ def test_soils_in_separate_sweeps_pool_only_the_conditions_both_evaluated(tmp_pa
     assert "| every condition | 2 | 1.00 | 25 points | no |" in text
 
 
+def test_a_group_is_compared_across_soils_only_where_it_pools_the_same_conditions(tmp_path):
+    # heightfield on winter A-D, particles on winter C alone: both have a 'winter' test
+    # (particles' is winter C), which must not be compared; winter C itself is
+    train = tmp_path / "train"
+    days = ("winter_a", "winter_b", "winter_c", "winter_d")
+    for n, (policy, c_wins) in enumerate({"rf": 4, "dannet": 1}.items()):
+        run = seeded_job(train, n, policy=policy, seed=0, wins={"summer": [True]})
+        hf = {day: [True] * c_wins + [False] * (4 - c_wins) for day in days}
+        hf["winter_a"] = [True] * (4 - c_wins) + [False] * c_wins  # ranks A-D the other way
+        for soil, wins in (("heightfield", hf), ("particles", {"winter_c": hf["winter_c"]})):
+            seeded_job(
+                tmp_path / soil,
+                n,
+                policy=policy,
+                seed=0,
+                soil=soil,
+                checkpoint=str(run / "best.pt"),
+                wins=wins,
+            )
+    sweeps = [tmp_path / "heightfield", tmp_path / "particles"]
+    cells = soil_cells(sweeps)
+    pair = ("heightfield", "particles")
+    assert cells.members["heightfield"]["winter"] == {days}
+    assert cells.members["particles"]["winter"] == {("winter_c",)}
+    assert soil_agreement(cells, pair, "winter_c").tau == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="test 'winter' pools other conditions on each soil"):
+        soil_agreement(cells, pair, "winter")
+    text = build_report(out_dir=tmp_path / "report", cross_soil=sweeps)[0].read_text()
+    assert "| winter_c | 2 | 1.00 | 0 points | yes |" in text
+    assert (
+        "Not compared: test 'winter' pools other conditions on each soil (heightfield: "
+        "winter_a, winter_b, winter_c, winter_d; particles: winter_c)" in text
+    )
+    assert "\n| winter | 2 |" not in text
+
+
+def test_soils_without_a_shared_condition_are_reported_not_crashed(tmp_path):
+    train = tmp_path / "train"
+    for n, policy in enumerate(("rf", "dannet")):
+        run = seeded_job(train, n, policy=policy, seed=0, wins={"summer": [True]})
+        for soil, condition in (("heightfield", "summer"), ("particles", "winter_c")):
+            seeded_job(
+                tmp_path / soil,
+                n,
+                policy=policy,
+                seed=0,
+                soil=soil,
+                checkpoint=str(run / "best.pt"),
+                wins={condition: [True, False]},
+            )
+    sweeps = [tmp_path / "heightfield", tmp_path / "particles"]
+    cells = soil_cells(sweeps)
+    assert cells.pooled_conditions == ()
+    assert not any(k[3] == EVERY_CONDITION for k in cells.by_soil["heightfield"])
+    text = build_report(out_dir=tmp_path / "report", cross_soil=sweeps)[0].read_text()
+    assert "every job evaluated: none (so no such column)." in text
+    assert "Fewer than two controllers on both soils: no rank agreement." in text
+    # a mistyped sweep directory is refused before anything is written
+    with pytest.raises(FileNotFoundError, match="no_such_sweep: no such sweep directory"):
+        build_report(out_dir=tmp_path / "fresh", cross_soil=[sweeps[0], tmp_path / "no_such_sweep"])
+    assert not (tmp_path / "fresh").exists()
+
+
 def test_a_repeated_seed_is_refused_naming_the_cell_the_seed_and_the_jobs(tmp_path):
     # a sweep run twice into one tree: two finished jobs of DANNet seed 2, same outcomes
     sweep = tmp_path / "exp"

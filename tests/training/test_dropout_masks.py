@@ -151,6 +151,28 @@ def test_masks_drawn_ahead_have_the_dtype_and_device_torchs_dropout_uses(dtype):
         assert feed is None  # nothing to draw ahead
 
 
+def test_masks_drawn_ahead_refuse_a_non_contiguous_input():
+    """torch draws into ``empty_like(x)``, which keeps a transposed input's column order:
+    the same generator then fills other elements than a mask drawn ahead (contiguous), so
+    such an input is refused instead of silently training on other masks."""
+    torch.manual_seed(0)
+    layers = nn.Sequential(nn.Linear(3, 8), nn.Dropout(0.35)).train()
+    x = torch.randn(6, 3)
+    transposed = torch.randn(8, 6).t()  # (6, 8), column-major
+    torch.manual_seed(2)
+    torch_mask = torch.nn.functional.dropout(torch.ones_like(transposed), 0.35)
+    with masks_ahead(layers, lambda: layers(x[:1])) as feed:
+        torch.manual_seed(2)
+        feed.start_epoch([6])
+        feed.next_step()
+        (mask,) = feed.current
+        assert not torch.equal(mask, torch_mask)  # why: another element order
+        assert torch.equal(layers[1](transposed.contiguous()), transposed * mask)
+        with pytest.raises(RuntimeError, match=r"layer 0 got a non-contiguous input"):
+            layers[1](transposed)
+        feed.end_epoch()
+
+
 def test_given_mask_dropout_refuses_a_mask_of_another_shape():
     """The mask is one multiplier per element: a mask that would broadcast (one row for a
     batch, or a member's mask against another width) is refused, naming both shapes, also
