@@ -196,6 +196,7 @@ class PileLoadingEnv(gym.Env):
         self._noisy = bool(self._noise_std.any())
         # each sensor's (name, low, high), read with plain floats at every step
         self._sensor_ranges = [(s.name, float(s.low), float(s.high)) for s in SENSORS]
+        self._sensor_names = [s.name for s in SENSORS]
         self._renderer: mujoco.Renderer | None = None
         self._boom_valve = self._bucket_valve = self._pump_fraction = 0.0
         # the valves' and the pump's first-order lag over a chunk of physics steps, by chunk
@@ -323,26 +324,45 @@ class PileLoadingEnv(gym.Env):
 
         Without ``command`` the valves and pump keep their state (used to settle at reset).
         """
-        m, d, machine = self.model, self.data, self.machine
+        m, d, machine, soil = self.model, self.data, self.machine, self.soil
         timestep = self._timestep
         whole_step = n_steps == self.frame_skip
         chunks = self._chunk_steps if whole_step else _split(n_steps, self._chunks)
         if command is not None:
             boom, bucket, pump = map(float, command)
+        # the valve and pump states and the tallies in locals through the loop, written
+        # back after it (the same arithmetic, in the same order)
+        boom_valve, bucket_valve, pump_fraction = (
+            self._boom_valve,
+            self._bucket_valve,
+            self._pump_fraction,
+        )
+        steps_since_soil, soil_period, energy_j = (
+            self._steps_since_soil,
+            self._soil_period_steps,
+            self._energy_j,
+        )
         for steps in chunks:
             chunk_dt = steps * timestep
             if command is not None:
-                valve_blend, pump_blend = self._lag_blend(steps, chunk_dt)
-                self._boom_valve += valve_blend * (boom - self._boom_valve)
-                self._bucket_valve += valve_blend * (bucket - self._bucket_valve)
-                self._pump_fraction += pump_blend * (pump - self._pump_fraction)
-            machine.command(self._boom_valve, self._bucket_valve, self._pump_fraction)
+                blends = self._lag_blends.get(steps) or self._lag_blend(steps, chunk_dt)
+                valve_blend, pump_blend = blends
+                boom_valve += valve_blend * (boom - boom_valve)
+                bucket_valve += valve_blend * (bucket - bucket_valve)
+                pump_fraction += pump_blend * (pump - pump_fraction)
+            machine.command(boom_valve, bucket_valve, pump_fraction)
             mujoco.mj_step(m, d, nstep=steps)
-            self._steps_since_soil += steps
-            if self._steps_since_soil >= self._soil_period_steps:
-                self.soil.update(self._steps_since_soil * timestep)
-                self._steps_since_soil = 0
-            self._energy_j += machine.hydraulic_power_w() * chunk_dt
+            steps_since_soil += steps
+            if steps_since_soil >= soil_period:
+                soil.update(steps_since_soil * timestep)
+                steps_since_soil = 0
+            energy_j += machine.hydraulic_power_w() * chunk_dt
+        self._boom_valve, self._bucket_valve, self._pump_fraction = (
+            boom_valve,
+            bucket_valve,
+            pump_fraction,
+        )
+        self._steps_since_soil, self._energy_j = steps_since_soil, energy_j
         machine.limit_cylinder_windup()
         # one check for both: a sum of squares is finite exactly when every entry is
         # finite and none is beyond ~1e154 (a state that large has diverged as well)
@@ -388,8 +408,9 @@ class PileLoadingEnv(gym.Env):
         for value, (_, low, high) in zip(values, self._sensor_ranges, strict=True):
             value = value if (value != value or value > low) else low
             clipped.append(value if (value != value or value < high) else high)
-        readings = np.array(clipped, dtype=np.float32)
-        return {name: readings[i : i + 1] for i, (name, _, _) in enumerate(self._sensor_ranges)}
+        # one float32 array; each sensor gets its row, a (1,) view as a slice of it would be
+        readings = np.array(clipped, dtype=np.float32).reshape(-1, 1)
+        return dict(zip(self._sensor_names, readings, strict=True))
 
     def _info(
         self,
@@ -435,7 +456,10 @@ class PileLoadingEnv(gym.Env):
 def _validate_action(action) -> tuple[float, float, float]:
     """The action as three floats, clipped to [-1, 1] (np.clip's rule); a clear error for a
     wrong shape or a non-finite value."""
-    u = np.asarray(action, dtype=np.float64)
+    # a float array's entries as floats directly: they convert exactly, as through
+    # np.asarray(action, float64), without the copy
+    floats = isinstance(action, np.ndarray) and action.dtype.kind == "f"
+    u = action if floats else np.asarray(action, dtype=np.float64)
     if u.shape != (3,):
         raise ValueError(
             f"PileLoadingEnv.step: action must have shape (3,) = [boom, bucket, throttle], "
@@ -448,7 +472,10 @@ def _validate_action(action) -> tuple[float, float, float]:
             for name, v in zip(("boom", "bucket", "throttle"), values, strict=True)
             if not math.isfinite(v)
         ]
-        raise ValueError(f"PileLoadingEnv.step: action has non-finite values in {bad}: {u}")
+        raise ValueError(
+            f"PileLoadingEnv.step: action has non-finite values in {bad}: "
+            f"{np.asarray(u, dtype=np.float64)}"
+        )
     boom, bucket, throttle = (v if v > -1.0 else -1.0 for v in values)
     return (
         boom if boom < 1.0 else 1.0,

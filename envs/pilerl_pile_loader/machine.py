@@ -286,19 +286,20 @@ class Machine:
         act_state, qpos = self._act, self._qpos
         forcerange, gainprm, actadr = self._forcerange, self._gainprm, self._actadr
         for act, q in ((self.boom_actuator, self._boom_q), (self.bucket_actuator, self._bucket_q)):
-            slack = float(forcerange[act, 1] / gainprm[act, 0])
-            adr = int(actadr[act])
-            position = float(qpos[q])
-            act_state[adr] = min(max(float(act_state[adr]), position - slack), position + slack)
+            # ``.item``: the entry as a float, without a NumPy scalar (the same value)
+            slack = forcerange.item(act, 1) / gainprm.item(act, 0)
+            adr = actadr.item(act)
+            position = qpos.item(q)
+            act_state[adr] = min(max(act_state.item(adr), position - slack), position + slack)
 
     # ------------------------------------------------------------------ readings
     def boom_angle(self) -> float:
         """theta1: boom joint angle [rad], 0 = boom horizontal, + raised."""
-        return float(self._qpos[self._boom_q])
+        return self._qpos.item(self._boom_q)
 
     def bucket_angle(self) -> float:
         """theta2: bucket joint angle relative to the boom [rad], + curled."""
-        return float(self._qpos[self._bucket_q])
+        return self._qpos.item(self._bucket_q)
 
     def telescope_extension(self) -> float:
         return float(self._qpos[self._telescope_q])
@@ -308,8 +309,8 @@ class Machine:
 
     def bucket_pitch(self) -> float:
         """Angle of the bucket floor above horizontal in the world [rad], + mouth up."""
-        xmat = self._xmat[self.bucket_body]  # row-major 3x3: x axis = column 0
-        x, y, z = float(xmat[0]), float(xmat[3]), float(xmat[6])
+        xmat, body = self._xmat, self.bucket_body  # row-major 3x3: x axis = column 0
+        x, y, z = xmat.item(body, 0), xmat.item(body, 3), xmat.item(body, 6)
         return math.atan2(z, math.hypot(x, y))
 
     def heading(self) -> np.ndarray:
@@ -318,14 +319,14 @@ class Machine:
 
     def heading_xy(self) -> tuple[float, float]:
         """``heading()`` as two floats (x, y)."""
-        xmat = self._xmat[self.front_frame_body]  # row-major 3x3: x axis = column 0
-        x, y = float(xmat[0]), float(xmat[3])
+        xmat, body = self._xmat, self.front_frame_body  # row-major 3x3: x axis = column 0
+        x, y = xmat.item(body, 0), xmat.item(body, 3)
         norm = max(math.hypot(x, y), 1e-9)
         return x / norm, y / norm
 
     def frame_tilt(self) -> float:
         """Tilt of the front frame from upright [rad] (roll and pitch together)."""
-        up = float(self._xmat[self.front_frame_body][8])  # z axis = column 2: its z is [8]
+        up = self._xmat.item(self.front_frame_body, 8)  # z axis = column 2: its z is [8]
         return math.acos(min(max(up, -1.0), 1.0))
 
     def forward_speed(self) -> float:
@@ -375,17 +376,17 @@ class Machine:
         the loop is loaded (a shuttle valve picks the higher line).
         """
         p = self.params
-        loop_pa = abs(float(self._actuator_force[self.drive_actuator]))
+        loop_pa = abs(self._actuator_force.item(self.drive_actuator))
         return p.drive_charge_pressure_mpa + loop_pa / MPA
 
     def boom_pressure_mpa(self) -> float:
         """p_l: boom (lift) cylinder piston-side pressure [MPa]; + torque raises the boom."""
-        force = float(self._actuator_force[self.boom_actuator]) / self.params.boom_moment_arm_m
+        force = self._actuator_force.item(self.boom_actuator) / self.params.boom_moment_arm_m
         return self._piston_pressure_mpa("boom", force)
 
     def bucket_pressure_mpa(self) -> float:
         """p_b: bucket cylinder piston-side pressure [MPa]; the piston side curls (+ theta2)."""
-        force = float(self._actuator_force[self.bucket_actuator]) / self.params.bucket_moment_arm_m
+        force = self._actuator_force.item(self.bucket_actuator) / self.params.bucket_moment_arm_m
         return self._piston_pressure_mpa("bucket", force)
 
     def telescope_pressure_mpa(self) -> float:
@@ -395,7 +396,7 @@ class Machine:
         driven into the pile); the pull of gravity on a lowered telescope and bucket is
         carried by the rod side and leaves the reading at the tank pressure.
         """
-        force = float(self._actuator_force[self.telescope_actuator])
+        force = self._actuator_force.item(self.telescope_actuator)
         return self._piston_pressure_mpa("telescope", force)
 
     def _piston_pressure_mpa(self, part: str, force_n: float) -> float:
