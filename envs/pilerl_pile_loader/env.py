@@ -58,6 +58,13 @@ from .task import RewardWeights, ScoopTask, reward_parts
 INITIAL_BOOM_ANGLE_RAD = -0.45  # bucket lowered: floor a few cm above the ground
 SETTLE_SECONDS = 0.6  # simulated time to settle on the tyres after reset [s]
 LATERAL_OFFSET_RANGE_M = (-0.3, 0.3)  # where along the pile face the bucket aims [m]
+REWARD_PART_NAMES = (
+    "reward_fill",
+    "reward_spill",
+    "reward_time",
+    "reward_energy",
+    "reward_success",
+)
 
 
 class PileLoadingEnv(gym.Env):
@@ -161,6 +168,8 @@ class PileLoadingEnv(gym.Env):
         self.dt = self.frame_skip * self.model.opt.timestep  # control period [s]
         n_chunks = max(1, min(self.frame_skip, round(self.dt * soil_hz)))
         self._chunks = np.diff(np.linspace(0, self.frame_skip, n_chunks + 1).round().astype(int))
+        self._chunk_steps = self._chunks.tolist()  # the same, as ints for the step loop
+        self._timestep = float(self.model.opt.timestep)
         # physics steps between soil updates: after every chunk when control is slower than
         # the soil rate, else every few control steps (counted across steps)
         if self.dt * soil_hz >= 1.0:
@@ -176,6 +185,7 @@ class PileLoadingEnv(gym.Env):
             frame_skip=self.frame_skip,
             n_controls=3,
         )
+        self._delayed = self._delay.enabled  # else a command acts for the whole step
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self.observation_space = spaces.Dict(
             {s.name: spaces.Box(s.low, s.high, shape=(1,), dtype=np.float32) for s in SENSORS}
@@ -183,14 +193,17 @@ class PileLoadingEnv(gym.Env):
         self.sensor_units = {s.name: s.unit for s in SENSORS}  # for dataset writers
         self.control_names = CONTROL_NAMES
         self._noise_std = _noise_std(sensor_noise)
-        self._low = np.array([s.low for s in SENSORS])
-        self._high = np.array([s.high for s in SENSORS])
+        self._noisy = bool(self._noise_std.any())
+        # each sensor's (name, low, high), read with plain floats at every step
+        self._sensor_ranges = [(s.name, float(s.low), float(s.high)) for s in SENSORS]
+        self._sensor_names = [s.name for s in SENSORS]
         self._renderer: mujoco.Renderer | None = None
         self._boom_valve = self._bucket_valve = self._pump_fraction = 0.0
         # the valves' and the pump's first-order lag over a chunk of physics steps, by chunk
         # length (a handful of lengths recur: computed once, not at every chunk)
         self._lag_blends: dict[int, tuple[float, float]] = {}
         self._qpos, self._qvel = self.data.qpos, self.data.qvel  # views: see Machine
+        self._xpos = self.data.xpos
         self._elapsed_s = 0.0
         self._episode_over = True  # no episode until reset(): step() refuses
 
@@ -230,8 +243,11 @@ class PileLoadingEnv(gym.Env):
             )
         u = _validate_action(action)
         energy_before = self._energy_j
-        for n_steps, command in self._delay.segments(u):
-            self._run_physics(n_steps, command=command)
+        if self._delayed:
+            for n_steps, command in self._delay.segments(np.array(u)):
+                self._run_physics(n_steps, command=command)
+        else:  # what ``segments`` gives without a delay: the command, the whole step
+            self._run_physics(self.frame_skip, command=u)
         self._elapsed_s += self.dt
 
         fill = self.soil.fill_fraction
@@ -260,6 +276,7 @@ class PileLoadingEnv(gym.Env):
             parts=parts,
             bucket_pitch_rad=pitch,
             hinge_height_m=hinge_height,
+            fill=fill,
         )
         return self._observation(), float(sum(parts.values())), terminated, truncated, info
 
@@ -307,28 +324,50 @@ class PileLoadingEnv(gym.Env):
 
         Without ``command`` the valves and pump keep their state (used to settle at reset).
         """
-        m, d, machine = self.model, self.data, self.machine
-        timestep = m.opt.timestep
-        chunks = self._chunks if n_steps == self.frame_skip else _split(n_steps, self._chunks)
+        m, d, machine, soil = self.model, self.data, self.machine, self.soil
+        timestep = self._timestep
+        whole_step = n_steps == self.frame_skip
+        chunks = self._chunk_steps if whole_step else _split(n_steps, self._chunks)
         if command is not None:
-            boom, bucket, pump = (float(c) for c in command)
+            boom, bucket, pump = map(float, command)
+        # the valve and pump states and the tallies in locals through the loop, written
+        # back after it (the same arithmetic, in the same order)
+        boom_valve, bucket_valve, pump_fraction = (
+            self._boom_valve,
+            self._bucket_valve,
+            self._pump_fraction,
+        )
+        steps_since_soil, soil_period, energy_j = (
+            self._steps_since_soil,
+            self._soil_period_steps,
+            self._energy_j,
+        )
         for steps in chunks:
-            steps = int(steps)
             chunk_dt = steps * timestep
             if command is not None:
-                valve_blend, pump_blend = self._lag_blend(steps, chunk_dt)
-                self._boom_valve += valve_blend * (boom - self._boom_valve)
-                self._bucket_valve += valve_blend * (bucket - self._bucket_valve)
-                self._pump_fraction += pump_blend * (pump - self._pump_fraction)
-            machine.command(self._boom_valve, self._bucket_valve, self._pump_fraction)
+                blends = self._lag_blends.get(steps) or self._lag_blend(steps, chunk_dt)
+                valve_blend, pump_blend = blends
+                boom_valve += valve_blend * (boom - boom_valve)
+                bucket_valve += valve_blend * (bucket - bucket_valve)
+                pump_fraction += pump_blend * (pump - pump_fraction)
+            machine.command(boom_valve, bucket_valve, pump_fraction)
             mujoco.mj_step(m, d, nstep=steps)
-            self._steps_since_soil += steps
-            if self._steps_since_soil >= self._soil_period_steps:
-                self.soil.update(self._steps_since_soil * timestep)
-                self._steps_since_soil = 0
-            self._energy_j += machine.hydraulic_power_w() * chunk_dt
+            steps_since_soil += steps
+            if steps_since_soil >= soil_period:
+                soil.update(steps_since_soil * timestep)
+                steps_since_soil = 0
+            energy_j += machine.hydraulic_power_w() * chunk_dt
+        self._boom_valve, self._bucket_valve, self._pump_fraction = (
+            boom_valve,
+            bucket_valve,
+            pump_fraction,
+        )
+        self._steps_since_soil, self._energy_j = steps_since_soil, energy_j
         machine.limit_cylinder_windup()
-        if not (np.isfinite(self._qpos).all() and np.isfinite(self._qvel).all()):
+        # one check for both: a sum of squares is finite exactly when every entry is
+        # finite and none is beyond ~1e154 (a state that large has diverged as well)
+        qpos, qvel = self._qpos, self._qvel
+        if not math.isfinite(np.dot(qpos, qpos) + np.dot(qvel, qvel)):
             raise RuntimeError(
                 f"simulation diverged (non-finite state) at t={self._elapsed_s:.3f} s; "
                 "check the condition overrides and machine parameters"
@@ -347,25 +386,31 @@ class PileLoadingEnv(gym.Env):
         return blends
 
     def _hinge_height(self) -> float:
-        return float(self.data.xpos[self.machine.bucket_body][2])
+        return self._xpos.item(self.machine.bucket_body, 2)
 
     def _observation(self) -> dict[str, np.ndarray]:
+        """The sensors' readings: noise added, clipped to each sensor's range, float32."""
         mc = self.machine
-        values = np.array(
-            [
-                mc.boom_angle(),
-                mc.bucket_angle(),
-                mc.drive_pressure_mpa(),
-                mc.telescope_pressure_mpa(),
-                mc.boom_pressure_mpa(),
-                mc.bucket_pressure_mpa(),
-                mc.pump_angle(self._pump_fraction),
-            ]
-        )
-        if self._noise_std.any():
-            values = values + self.np_random.normal(0.0, self._noise_std)
-        values = np.clip(values, self._low, self._high).astype(np.float32)
-        return {s.name: values[i : i + 1] for i, s in enumerate(SENSORS)}
+        values = [
+            mc.boom_angle(),
+            mc.bucket_angle(),
+            mc.drive_pressure_mpa(),
+            mc.telescope_pressure_mpa(),
+            mc.boom_pressure_mpa(),
+            mc.bucket_pressure_mpa(),
+            mc.pump_angle(self._pump_fraction),
+        ]
+        if self._noisy:
+            noise = self.np_random.normal(0.0, self._noise_std).tolist()
+            values = [value + n for value, n in zip(values, noise, strict=True)]
+        # np.clip's rule on plain floats: NaN stays, below low gives low, above high high
+        clipped = []
+        for value, (_, low, high) in zip(values, self._sensor_ranges, strict=True):
+            value = value if (value != value or value > low) else low
+            clipped.append(value if (value != value or value < high) else high)
+        # one float32 array; each sensor gets its row, a (1,) view as a slice of it would be
+        readings = np.array(clipped, dtype=np.float32).reshape(-1, 1)
+        return dict(zip(self._sensor_names, readings, strict=True))
 
     def _info(
         self,
@@ -375,10 +420,13 @@ class PileLoadingEnv(gym.Env):
         parts: dict[str, float] | None,
         bucket_pitch_rad: float | None = None,
         hinge_height_m: float | None = None,
+        fill: float | None = None,
     ) -> dict:
-        """The step's ``info``; ``bucket_pitch_rad`` and ``hinge_height_m`` if already read."""
+        """The step's ``info``; ``bucket_pitch_rad``, ``hinge_height_m`` and ``fill`` (the
+        fill fraction) if already read."""
         soil, mc = self.soil, self.machine
-        fill = soil.fill_fraction
+        if fill is None:
+            fill = soil.fill_fraction
         forward_speed = mc.forward_speed()
         if bucket_pitch_rad is None:
             bucket_pitch_rad = mc.bucket_pitch()
@@ -401,31 +449,39 @@ class PileLoadingEnv(gym.Env):
             "elapsed_s": self._elapsed_s,
             **self._start,
         }
-        info.update(
-            parts
-            or dict.fromkeys(
-                ("reward_fill", "reward_spill", "reward_time", "reward_energy", "reward_success"),
-                0.0,
-            )
-        )
+        info.update(parts or dict.fromkeys(REWARD_PART_NAMES, 0.0))
         return info
 
 
-def _validate_action(action) -> np.ndarray:
-    u = np.asarray(action, dtype=np.float64)
+def _validate_action(action) -> tuple[float, float, float]:
+    """The action as three floats, clipped to [-1, 1] (np.clip's rule); a clear error for a
+    wrong shape or a non-finite value."""
+    # a float array's entries as floats directly: they convert exactly, as through
+    # np.asarray(action, float64), without the copy
+    floats = isinstance(action, np.ndarray) and action.dtype.kind == "f"
+    u = action if floats else np.asarray(action, dtype=np.float64)
     if u.shape != (3,):
         raise ValueError(
             f"PileLoadingEnv.step: action must have shape (3,) = [boom, bucket, throttle], "
             f"got shape {u.shape}"
         )
-    if not np.isfinite(u).all():
+    values = u.tolist()
+    if not all(math.isfinite(v) for v in values):
         bad = [
             name
-            for name, v in zip(("boom", "bucket", "throttle"), u, strict=True)
+            for name, v in zip(("boom", "bucket", "throttle"), values, strict=True)
             if not math.isfinite(v)
         ]
-        raise ValueError(f"PileLoadingEnv.step: action has non-finite values in {bad}: {u}")
-    return np.clip(u, -1.0, 1.0)
+        raise ValueError(
+            f"PileLoadingEnv.step: action has non-finite values in {bad}: "
+            f"{np.asarray(u, dtype=np.float64)}"
+        )
+    boom, bucket, throttle = (v if v > -1.0 else -1.0 for v in values)
+    return (
+        boom if boom < 1.0 else 1.0,
+        bucket if bucket < 1.0 else 1.0,
+        throttle if throttle < 1.0 else 1.0,
+    )
 
 
 def _checked_soil_options(soil_cls: type, options: Mapping[str, object] | None) -> dict:

@@ -207,10 +207,17 @@ class Machine:
         self._qpos, self._qvel, self._act = data.qpos, data.qvel, data.act
         self._ctrl, self._xmat = data.ctrl, data.xmat
         self._actuator_force, self._actuator_velocity = data.actuator_force, data.actuator_velocity
-        self._own_actuators = np.array(
-            [self.boom_actuator, self.bucket_actuator, self.telescope_actuator, self.drive_actuator]
+        self._own_actuators = (
+            self.boom_actuator,
+            self.bucket_actuator,
+            self.telescope_actuator,
+            self.drive_actuator,
         )
+        self._forcerange, self._gainprm = model.actuator_forcerange, model.actuator_gainprm
+        self._actadr = model.actuator_actadr
+        self._wheel_dofs = self._wheel_v.tolist()
         self._velocity = np.empty(6)  # mj_objectVelocity's output
+        self._ground_velocity = self._velocity[3:5]  # its linear x, y
         self._max_pump_flow_m3_s = params.max_pump_flow_m3_s  # a property: computed once
         # per cylinder: (tank pressure, tank pressure x annulus area, piston area), the
         # terms of ``MachineParameters.piston_pressure_mpa``
@@ -276,22 +283,23 @@ class Machine:
         When a cylinder stalls at relief pressure the oil goes over the relief valve; the
         cylinder must not "remember" the flow and jump once the load drops.
         """
-        m, act_state, qpos = self.model, self._act, self._qpos
-        forcerange, gainprm, actadr = m.actuator_forcerange, m.actuator_gainprm, m.actuator_actadr
+        act_state, qpos = self._act, self._qpos
+        forcerange, gainprm, actadr = self._forcerange, self._gainprm, self._actadr
         for act, q in ((self.boom_actuator, self._boom_q), (self.bucket_actuator, self._bucket_q)):
-            slack = float(forcerange[act, 1] / gainprm[act, 0])
-            adr = int(actadr[act])
-            position = float(qpos[q])
-            act_state[adr] = min(max(float(act_state[adr]), position - slack), position + slack)
+            # ``.item``: the entry as a float, without a NumPy scalar (the same value)
+            slack = forcerange.item(act, 1) / gainprm.item(act, 0)
+            adr = actadr.item(act)
+            position = qpos.item(q)
+            act_state[adr] = min(max(act_state.item(adr), position - slack), position + slack)
 
     # ------------------------------------------------------------------ readings
     def boom_angle(self) -> float:
         """theta1: boom joint angle [rad], 0 = boom horizontal, + raised."""
-        return float(self._qpos[self._boom_q])
+        return self._qpos.item(self._boom_q)
 
     def bucket_angle(self) -> float:
         """theta2: bucket joint angle relative to the boom [rad], + curled."""
-        return float(self._qpos[self._bucket_q])
+        return self._qpos.item(self._bucket_q)
 
     def telescope_extension(self) -> float:
         return float(self._qpos[self._telescope_q])
@@ -301,20 +309,24 @@ class Machine:
 
     def bucket_pitch(self) -> float:
         """Angle of the bucket floor above horizontal in the world [rad], + mouth up."""
-        xmat = self._xmat[self.bucket_body]  # row-major 3x3: x axis = column 0
-        x, y, z = float(xmat[0]), float(xmat[3]), float(xmat[6])
+        xmat, body = self._xmat, self.bucket_body  # row-major 3x3: x axis = column 0
+        x, y, z = xmat.item(body, 0), xmat.item(body, 3), xmat.item(body, 6)
         return math.atan2(z, math.hypot(x, y))
 
     def heading(self) -> np.ndarray:
         """Unit horizontal forward direction of the front frame (world x, y)."""
-        xmat = self._xmat[self.front_frame_body]  # row-major 3x3: x axis = column 0
-        x, y = float(xmat[0]), float(xmat[3])
+        return np.array(self.heading_xy())
+
+    def heading_xy(self) -> tuple[float, float]:
+        """``heading()`` as two floats (x, y)."""
+        xmat, body = self._xmat, self.front_frame_body  # row-major 3x3: x axis = column 0
+        x, y = xmat.item(body, 0), xmat.item(body, 3)
         norm = max(math.hypot(x, y), 1e-9)
-        return np.array([x / norm, y / norm])
+        return x / norm, y / norm
 
     def frame_tilt(self) -> float:
         """Tilt of the front frame from upright [rad] (roll and pitch together)."""
-        up = float(self._xmat[self.front_frame_body][8])  # z axis = column 2: its z is [8]
+        up = self._xmat.item(self.front_frame_body, 8)  # z axis = column 2: its z is [8]
         return math.acos(min(max(up, -1.0), 1.0))
 
     def forward_speed(self) -> float:
@@ -323,7 +335,8 @@ class Machine:
         mujoco.mj_objectVelocity(
             self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self.front_frame_body, vel, 0
         )
-        return float(vel[3:5] @ self.heading())
+        # np.dot: the product of ``@`` (a BLAS dot: its last bit follows the kernel)
+        return float(np.dot(self._ground_velocity, self.heading()))
 
     def wheel_loads_n(self) -> np.ndarray:
         """Normal load on each tyre [N], order fl, fr, rl, rr, from its radial spring-damper
@@ -344,10 +357,15 @@ class Machine:
 
         ``forward_speed_m_s``: ``forward_speed()`` if the caller already has it.
         """
-        rim_speed = self.wheel_speeds() * self.params.wheel_radius_m
+        radius, qvel = self.params.wheel_radius_m, self._qvel
         if forward_speed_m_s is None:
             forward_speed_m_s = self.forward_speed()
-        return float(np.mean(rim_speed) - forward_speed_m_s)
+        # np.mean's arithmetic on plain floats: the rim speeds added one by one to 0.0
+        # (NumPy's order for a few terms), divided by their number
+        total = 0.0
+        for dof in self._wheel_dofs:
+            total += qvel.item(dof) * radius
+        return total / len(self._wheel_dofs) - forward_speed_m_s
 
     def drive_pressure_mpa(self) -> float:
         """p_d: HST high-side pressure [MPa].
@@ -358,17 +376,17 @@ class Machine:
         the loop is loaded (a shuttle valve picks the higher line).
         """
         p = self.params
-        loop_pa = abs(float(self._actuator_force[self.drive_actuator]))
+        loop_pa = abs(self._actuator_force.item(self.drive_actuator))
         return p.drive_charge_pressure_mpa + loop_pa / MPA
 
     def boom_pressure_mpa(self) -> float:
         """p_l: boom (lift) cylinder piston-side pressure [MPa]; + torque raises the boom."""
-        force = float(self._actuator_force[self.boom_actuator]) / self.params.boom_moment_arm_m
+        force = self._actuator_force.item(self.boom_actuator) / self.params.boom_moment_arm_m
         return self._piston_pressure_mpa("boom", force)
 
     def bucket_pressure_mpa(self) -> float:
         """p_b: bucket cylinder piston-side pressure [MPa]; the piston side curls (+ theta2)."""
-        force = float(self._actuator_force[self.bucket_actuator]) / self.params.bucket_moment_arm_m
+        force = self._actuator_force.item(self.bucket_actuator) / self.params.bucket_moment_arm_m
         return self._piston_pressure_mpa("bucket", force)
 
     def telescope_pressure_mpa(self) -> float:
@@ -378,7 +396,7 @@ class Machine:
         driven into the pile); the pull of gravity on a lowered telescope and bucket is
         carried by the rod side and leaves the reading at the tank pressure.
         """
-        force = float(self._actuator_force[self.telescope_actuator])
+        force = self._actuator_force.item(self.telescope_actuator)
         return self._piston_pressure_mpa("telescope", force)
 
     def _piston_pressure_mpa(self, part: str, force_n: float) -> float:
@@ -392,5 +410,14 @@ class Machine:
 
     def hydraulic_power_w(self) -> float:
         """Mechanical power delivered by all cylinders and wheel motors [W] (>= 0)."""
-        own = self._own_actuators
-        return float(np.abs(self._actuator_force[own] * self._actuator_velocity[own]).sum())
+        force, velocity = self._actuator_force, self._actuator_velocity
+        # NumPy's arithmetic on plain floats: |force x velocity| added one by one to 0.0
+        # (its order for a few terms), without four small arrays per call
+        boom, bucket, telescope, drive = self._own_actuators
+        return (
+            0.0
+            + abs(force.item(boom) * velocity.item(boom))
+            + abs(force.item(bucket) * velocity.item(bucket))
+            + abs(force.item(telescope) * velocity.item(telescope))
+            + abs(force.item(drive) * velocity.item(drive))
+        )

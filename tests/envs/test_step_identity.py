@@ -2,10 +2,12 @@
 
 ``data/step_identity.npz`` holds the observations, rewards and numeric ``info`` of a few
 seeded, open-loop scoops, recorded with the simulator of main 0719f90 (before the
-speed work of issue #18). A change that only makes a control step cheaper must leave
-every one of these numbers exactly as it was; a change that means to alter the physics
-rewrites the file on purpose (``python tests/envs/test_step_identity.py --write``) and
-says so in its commit.
+speed work of issue #18); the cases with a soil option and another control rate were
+added in session 26, recorded with s25-int ea63bea (before that session's speed work),
+so that the soil options' code paths and other chunk lengths are pinned too. A change
+that only makes a control step cheaper must leave every one of these numbers exactly as
+it was; a change that means to alter the physics rewrites the file on purpose (``python
+tests/envs/test_step_identity.py --write``) and says so in its commit.
 
 The actions are a fixed script (drive in, lift and curl), not the scripted expert, so the
 pinned numbers do not move when the expert's behaviour is tuned.
@@ -38,8 +40,20 @@ STEPS = 180  # 9 s at 20 Hz: drive-in, penetration, lift, curl
 CASES = {
     "summer": {"condition": "summer"},
     "winter_c_latency": {"condition": "winter_c", "actuation_latency_s": (0.1, 0.3)},
+    "winter_b_body_resistance": {
+        "condition": "winter_b",
+        "soil_options": {"body_resistance": True},
+    },
+    "winter_a_mouth_intake": {"condition": "winter_a", "soil_options": {"intake": "mouth"}},
+    "winter_d_10hz": {"condition": "winter_d", "control_hz": 10.0},
 }
-SEEDS = {"summer": 3, "winter_c_latency": 11}
+SEEDS = {
+    "summer": 3,
+    "winter_c_latency": 11,
+    "winter_b_body_resistance": 1,
+    "winter_a_mouth_intake": 7,
+    "winter_d_10hz": 9,
+}
 SUM_RTOL, SUM_ATOL = 1e-9, 1e-9  # rewards and info: last bits follow the BLAS kernel
 INFO_KEYS = (
     "fill_fraction",

@@ -61,6 +61,7 @@ weight the payload body carries). ``cutting_depth_m`` stays the edge's.
 
 from __future__ import annotations
 
+import bisect
 import functools
 import math
 from typing import TYPE_CHECKING
@@ -90,6 +91,7 @@ INTAKE_MODES = ("footprint", "mouth")  # the default first
 PILE_RGBA = (0.55, 0.47, 0.36, 1.0)
 RENDER_SINK_M = 0.005  # drawn pile sits this far down so bare cells hide under the ground
 CANDIDATE_MARGIN_M = 1e-6  # cells this far beyond the bucket's extent are still tested [m]
+FLOOR_MARGIN_M = 1e-9  # a surface this far below the bucket's lowest point gives nothing [m]
 UP = np.array([0.0, 0.0, 1.0])  # world vertical
 
 
@@ -205,6 +207,16 @@ class HeightfieldSoil(SoilModel):
         self._gear, self._forcerange = model.actuator_gear, model.actuator_forcerange
         self._biasprm = model.actuator_biasprm
         self._body_mass, self._body_inertia = model.body_mass, model.body_inertia
+        # each soil damper's direction (gear), force range and bias, as row views written
+        # element by element at every update (a row assigned from a tuple converts it to an
+        # array first: ~1 us each)
+        self._damper_rows = {
+            name: (model.actuator_gear[i, :3], model.actuator_forcerange[i], self._biasprm[i])
+            for name, i in (("push", self._push), ("side", self._side), ("lift", self._lift))
+        }
+        self._direction = np.zeros(3)  # a soil damper's world direction, filled in place
+        self._payload_inertia = model.body_inertia[self._payload]
+        self._payload_written_kg = -1.0  # the payload mass last written to the model [kg]
         self.cell_area_m2 = self.dx * self.dy
         self._factors = fee_factors(
             rake_angle_rad=math.radians(RAKE_ANGLE_DEG),
@@ -214,15 +226,42 @@ class HeightfieldSoil(SoilModel):
         polygon = self.bucket.polygon
         self._polygon_local = np.zeros((len(polygon), 3))
         self._polygon_local[:, 0], self._polygon_local[:, 2] = polygon[:, 0], polygon[:, 1]
-        self._edge_next = np.roll(np.arange(len(polygon)), -1)
-        # the holding volume depends only on pitch: tabulate it once
-        self._pitch_table, self._holding_table = holding_table(self.bucket, self.repose_angle_rad)
+        # the polygon's edges as (start, end) vertex indices
+        self._edge_pairs = [(i, (i + 1) % len(polygon)) for i in range(len(polygon))]
+        # the holding volume depends only on pitch: tabulate it once (as lists: read by
+        # ``_holding_volume_m3`` with plain floats)
+        pitch_table, volume_table = holding_table(self.bucket, self.repose_angle_rad)
+        self._pitch_table, self._holding_table = pitch_table.tolist(), volume_table.tolist()
+        # constants of the breakout force (``breakout_force_n``), computed once
+        self._floor_m = float(self.bucket.cutting_edge_xz[0] - self.bucket.polygon[0, 0])
+        self._tan_repose = math.tan(self.repose_angle_rad)
         self._edge_offsets_list = (
             np.linspace(-0.45, 0.45, EDGE_SAMPLES) * self.bucket.width_m
         ).tolist()
+        self._bind_far_box()
         self.heights = np.zeros((self.nrow, self.ncol))  # pile surface [m]; reset/update write it
-        self._pile_mass_kg = 0.0  # of ``heights``, summed where they change (read every step)
+        self._pile_mass_kg: float | None = None  # of ``heights``; None: to be summed
         self._bind_mouth()
+
+    def _bind_far_box(self) -> None:
+        """The box [m] the bucket's hinge must leave for the bucket to be far from the pile
+        (``update``): the grid's cell centres grown by the bucket's reach and two cells.
+
+        The reach bounds, in the horizontal plane, how far from the hinge anything an
+        update reads can lie: a corner of the intake's footprint (a polygon vertex's
+        distance, at most its norm, plus half the width) and a sample point of the depth
+        (the cutting edge, a vertex, plus one cell ahead, plus at most half the width
+        across). Beyond the box by more than that, the footprint's window is empty and
+        every sample point rounds to a cell off the grid (two cells of margin), so the
+        intake takes nothing and the depths are 0, as the full update finds."""
+        reach_m = (
+            float(np.linalg.norm(self._polygon_local, axis=1).max())
+            + self.bucket.width_m / 2
+            + self.dx
+        )
+        grow_m = reach_m + 2 * max(self.dx, self.dy)
+        x_end, y_end = self._x0 + (self.ncol - 1) * self.dx, self._y0 + (self.nrow - 1) * self.dy
+        self._far_box = (self._x0 - grow_m, x_end + grow_m, self._y0 - grow_m, y_end + grow_m)
 
     def _bind_mouth(self) -> None:
         """Mouth patch centres (bucket frame) and the mouth's outward normal (bucket frame)."""
@@ -252,7 +291,7 @@ class HeightfieldSoil(SoilModel):
         if self.pile.roughness_m > 0:
             heights = heights + self._undulation(rng) * (heights > 0)
         self.heights = np.clip(heights, 0.0, MAX_PILE_HEIGHT_M)
-        self._sum_pile_mass()
+        self._pile_changed()
         self.bucket_load_kg = 0.0
         self.spilled_kg = 0.0
         self._depth_m = 0.0
@@ -262,7 +301,7 @@ class HeightfieldSoil(SoilModel):
         self._mouth_credit_m3 = 0.0
         self.initial_mass_kg = self.pile_mass_kg
         self._write_payload()
-        self._write_resistance(0.0, np.array([1.0, 0.0]), 0.0)
+        self._write_resistance(0.0, (1.0, 0.0), 0.0)
         self._sync_hfield()
 
     def _undulation(self, rng: np.random.Generator) -> np.ndarray:
@@ -280,60 +319,102 @@ class HeightfieldSoil(SoilModel):
     # ------------------------------------------------------------------ tallies
     @property
     def pile_mass_kg(self) -> float:
+        if self._pile_mass_kg is None:
+            self._pile_mass_kg = float(
+                self.heights.sum() * self.cell_area_m2 * self.material.density_kg_m3
+            )
         return self._pile_mass_kg
 
-    def _sum_pile_mass(self) -> None:
-        """Sum the pile's mass; called wherever ``heights`` change (the heightfield holds
-        ~12,000 cells: summing them at every step's ``info`` cost more than the intake)."""
-        self._pile_mass_kg = float(
-            self.heights.sum() * self.cell_area_m2 * self.material.density_kg_m3
-        )
+    def _pile_changed(self) -> None:
+        """Have the pile's mass summed again when next read; called wherever ``heights``
+        change. The heightfield holds ~12,000 cells: summed at every step's ``info`` it
+        cost more than the intake, and after every intake twice per step while digging;
+        summed when read after a change, it is the same sum of the same heights."""
+        self._pile_mass_kg = None
 
     def cutting_depth_m(self) -> float:
         return self._depth_m
 
     # ------------------------------------------------------------------ update
     def update(self, dt: float) -> None:
+        """One soil update (module docstring). The per-call cost is Python's: the few
+        points of the bucket are plain floats, NumPy runs only the matrix products (kept
+        as they were: their last bits follow the BLAS kernel, see docs/performance.md)
+        and the intake's arrays over the pile's cells."""
         machine = self.machine
-        heading = machine.heading()
+        heading_xy = machine.heading_xy()
         rotation = self._xmat[machine.bucket_body].reshape(3, 3)
         hinge = self._xpos[machine.bucket_body]
-        # bucket inside polygon in the vertical plane through the hinge: (s along heading, z)
-        world = hinge + self._polygon_local @ rotation.T
-        s_poly = (world[:, :2] - hinge[:2]) @ heading
-        z_poly = world[:, 2]
-
-        density = self.material.density_kg_m3
         pitch = machine.bucket_pitch()
-        hold_m3 = float(np.interp(pitch, self._pitch_table, self._holding_table))
+        hold_m3 = self._holding_volume_m3(pitch)
         if self.measure_mouth:
             swept_m3 = self._mouth_sweep_m3(hinge, rotation)
             self.mouth_swept_m3 += swept_m3
             fade = math.exp(-dt / MOUTH_CREDIT_TIME_S)
             self._mouth_credit_m3 = self._mouth_credit_m3 * fade + swept_m3
-        self._intake(hinge, heading, s_poly, z_poly, hold_m3)
+        x_min, x_max, y_min, y_max = self._far_box
+        if not (x_min <= hinge.item(0) <= x_max and y_min <= hinge.item(1) <= y_max):
+            # far from the pile (``_bind_far_box``): what the full update finds there,
+            # without the polygon, the intake and the depth samples: nothing taken, depths
+            # 0, no resistance; the load still spills and the dampers turn with the bucket
+            self._spill(dt, hold_m3)
+            self._depth_m = self.resistance_depth_m = 0.0
+            self._write_resistance(0.0, heading_xy, 0.0, to_bucket=rotation.T)
+            self._write_payload(unless_unchanged=True)
+            return
+        # bucket inside polygon in world coordinates (np.dot: the products of ``@``, bit
+        # for bit, at half its call overhead)
+        world = hinge + np.dot(self._polygon_local, rotation.T)
+        if hold_m3 - self.bucket_load_kg / self.material.density_kg_m3 > 0.0:  # room left
+            # the polygon in the vertical plane through the hinge: (s along heading, z)
+            s_poly = np.dot(world[:, :2] - hinge[:2], np.array(heading_xy))
+            self._intake(hinge, heading_xy, s_poly, world[:, 2], hold_m3)
+        self._spill(dt, hold_m3)
 
+        edge = world[1]
+        self._depth_m = self._edge_depth(edge, heading_xy)
+        depth_m, lift_ratio = self._depth_m, 0.0
+        force = self._resistance_n(depth_m)
+        if self.body_resistance:
+            lowest = world[int(np.argmin(world[:, 2]))]
+            depth_m = self._body_depth(edge, lowest, heading_xy)
+            edge_force = force
+            force = self._resistance_n(depth_m)
+            lift_ratio = self._underside_lift_ratio(pitch, force, edge_force)
+        self.resistance_depth_m = depth_m
+        self._write_resistance(
+            force,
+            heading_xy,
+            self.breakout_force_n(self._depth_m),
+            lift_ratio=lift_ratio,
+            to_bucket=rotation.T,
+        )
+        self._write_payload(unless_unchanged=True)
+
+    def _spill(self, dt: float, hold_m3: float) -> None:
+        """Load above ``hold_m3`` slides out (module docstring, 2)."""
+        density = self.material.density_kg_m3
         load_m3 = self.bucket_load_kg / density
         if load_m3 > hold_m3:
             spill_m3 = (load_m3 - hold_m3) * (1.0 - math.exp(-dt / SPILL_TIME_CONSTANT_S))
             self.bucket_load_kg -= spill_m3 * density
             self.spilled_kg += spill_m3 * density
 
-        edge = world[1]
-        self._depth_m = self._edge_depth(edge, heading)
-        depth_m, lift_ratio = self._depth_m, 0.0
-        force = self._resistance_n(depth_m)
-        if self.body_resistance:
-            lowest = world[int(np.argmin(z_poly))]
-            depth_m = self._body_depth(edge, lowest, heading)
-            edge_force = force
-            force = self._resistance_n(depth_m)
-            lift_ratio = self._underside_lift_ratio(pitch, force, edge_force)
-        self.resistance_depth_m = depth_m
-        self._write_resistance(
-            force, heading, self.breakout_force_n(self._depth_m), lift_ratio=lift_ratio
-        )
-        self._write_payload()
+    def _holding_volume_m3(self, pitch_rad: float) -> float:
+        """Holding volume [m^3] at ``pitch_rad`` from the table: ``np.interp``'s arithmetic
+        (the interval's slope times the offset from its left end, plus its left value; a
+        table point exactly; the end values beyond the ends) on plain floats, a third of
+        its cost for one point."""
+        pitches, volumes = self._pitch_table, self._holding_table
+        j = bisect.bisect_right(pitches, pitch_rad) - 1
+        if j < 0:
+            return volumes[0]
+        if j >= len(pitches) - 1:
+            return volumes[-1]
+        if pitches[j] == pitch_rad:
+            return volumes[j]
+        slope = (volumes[j + 1] - volumes[j]) / (pitches[j + 1] - pitches[j])
+        return slope * (pitch_rad - pitches[j]) + volumes[j]
 
     def _resistance_n(self, depth_m: float) -> float:
         """Horizontal resistance [N] of the bucket meeting the pile ``depth_m`` deep."""
@@ -378,7 +459,7 @@ class HeightfieldSoil(SoilModel):
     def _intake(
         self,
         hinge: np.ndarray,
-        heading: np.ndarray,
+        heading: tuple[float, float] | np.ndarray,
         s_poly: np.ndarray,
         z_poly: np.ndarray,
         hold_m3: float,
@@ -411,7 +492,20 @@ class HeightfieldSoil(SoilModel):
             return
         rows, cols = window
         heights = self.heights[window]
-        if heights.max() <= z_poly.min():
+        z_values = z_poly.tolist()
+        # the ufuncs' reduce and maximum directly: what ndarray.max, .min and np.clip(x, 0,
+        # None) call, without their Python wrappers (~0.3 us each)
+        if np.maximum.reduce(heights, axis=None) <= min(z_values):
+            return
+        # vertical extent of the bucket polygon at each cell's s: intersect with its edges
+        # (edges seen end-on along the heading hold no cell); the polygon's edges as plain
+        # floats: (start s, start z, rise, span along s) of each edge that holds cells
+        edges = []
+        for a, b in self._edge_pairs:
+            span = s_values[b] - s_values[a]
+            if abs(span) >= 1e-9:
+                edges.append((s_values[a], z_values[a], z_values[b] - z_values[a], span))
+        if not edges:
             return
         rel_x = self._cell_x[cols] - h0  # (cols,)
         rel_y = self._cell_y[rows] - h1  # (rows, 1)
@@ -421,39 +515,43 @@ class HeightfieldSoil(SoilModel):
         # edges (the margin keeps any cell whose edge parameter rounds into [0, 1])
         candidate = inside_width & (s >= s_min - CANDIDATE_MARGIN_M)
         candidate &= s <= s_max + CANDIDATE_MARGIN_M
-        # vertical extent of the bucket polygon at each cell's s: intersect with its edges
-        # (edges seen end-on along the heading hold no cell)
-        s_b, z_b = s_poly[self._edge_next], z_poly[self._edge_next]
-        span = s_b - s_poly
-        live = np.abs(span) >= 1e-9
-        if not candidate.any() or not live.any():
+        # and only cells whose surface lies above the polygon's lowest point can give: the
+        # floor over a cell, interpolated along an edge, lies below that point by rounding
+        # at most (~1e-15 m, far less than the margin), so a lower cell's column is
+        # negative and it gives nothing either way
+        candidate &= heights > min(z_values) - FLOOR_MARGIN_M
+        if not candidate.any():
             return
-        s_a, z_a, rise, span = s_poly[live], z_poly[live], (z_b - z_poly)[live], span[live]
+        surface = heights[candidate]
         # one row per edge, one column per cell: NumPy reduces across rows in one pass over
         # the cells, along a short last axis row by row (~6x slower here, measured)
-        t = (s[candidate] - s_a[:, None]) / span[:, None]
+        s_a, z_a, rise, span = np.array(edges).T[:, :, None]  # each (edges, 1)
+        t = (s[candidate] - s_a) / span
         on_edge = (t >= 0.0) & (t <= 1.0)
-        z_at = z_a[:, None] + t * rise[:, None]
-        z_floor = np.where(on_edge, z_at, np.inf).min(axis=0)
-        z_roof = np.where(on_edge, z_at, -np.inf).max(axis=0)
-        inside = np.isfinite(z_floor)
-        column = np.minimum(heights[candidate], z_roof) - z_floor
+        z_at = z_a + t * rise
+        # lowest and highest crossing over the edges each cell lies on (inf, -inf: none;
+        # np.where then a reduce: ~40% faster here than a reduce's own ``where=``)
+        z_floor = np.minimum.reduce(np.where(on_edge, z_at, np.inf), axis=0)
+        z_roof = np.maximum.reduce(np.where(on_edge, z_at, -np.inf), axis=0)
+        # a cell on no edge (outside the polygon) has z_roof -inf and z_floor +inf: its
+        # column is -inf, which the clip at 0 turns into the 0.0 it takes
+        column = np.minimum(surface, z_roof) - z_floor
         taken = np.zeros(heights.shape)
-        taken[candidate] = np.where(inside, np.clip(column, 0.0, None), 0.0)
-        taken_m3 = float(taken.sum()) * self.cell_area_m2
+        taken[candidate] = np.maximum(column, 0.0)
+        taken_m3 = float(np.add.reduce(taken, axis=None)) * self.cell_area_m2
         if taken_m3 <= 0.0:
             return
         if self.intake == "mouth":
             floor = np.zeros(heights.shape)  # cells outside the candidates give nothing
-            floor[candidate] = np.where(inside, z_floor, 0.0)
+            floor[candidate] = np.where(np.isfinite(z_floor), z_floor, 0.0)
             taken, taken_m3 = self._through_mouth(taken, s, floor, s_poly, z_poly, room_m3)
             if taken_m3 <= 0.0:
                 return
         elif taken_m3 > room_m3:
             taken *= room_m3 / taken_m3
             taken_m3 = room_m3
-        self.heights[window] = heights - taken
-        self._sum_pile_mass()
+        heights -= taken  # a view: the window of ``self.heights``
+        self._pile_changed()
         self.bucket_load_kg += taken_m3 * density
 
     def _mouth_sweep_m3(self, hinge: np.ndarray, rotation: np.ndarray) -> float:
@@ -510,15 +608,16 @@ class HeightfieldSoil(SoilModel):
         Plain Python over the few sample points: NumPy's per-call overhead would dominate.
         """
         hx, hy = float(heading[0]), float(heading[1])
-        ahead_x, ahead_y = float(edge[0]) + hx * self.dx, float(edge[1]) + hy * self.dx
-        edge_z = float(edge[2])
+        x0, y0, dx, dy, ncol, nrow = self._x0, self._y0, self.dx, self.dy, self.ncol, self.nrow
+        edge_x, edge_y, edge_z = edge.tolist()
+        ahead_x, ahead_y = edge_x + hx * dx, edge_y + hy * dx
         heights, total, inside = self.heights, 0.0, False
         for offset in self._edge_offsets_list:
-            col = round((ahead_x - hy * offset - self._x0) / self.dx)
-            row = round((ahead_y + hx * offset - self._y0) / self.dy)
-            if 0 <= col < self.ncol and 0 <= row < self.nrow:
+            col = round((ahead_x - hy * offset - x0) / dx)
+            row = round((ahead_y + hx * offset - y0) / dy)
+            if 0 <= col < ncol and 0 <= row < nrow:
                 inside = True
-                total += max(float(heights[row, col]) - edge_z, 0.0)
+                total += max(heights.item(row, col) - edge_z, 0.0)
         return total / len(self._edge_offsets_list) if inside else 0.0
 
     def _body_depth(self, edge: np.ndarray, lowest: np.ndarray, heading: np.ndarray) -> float:
@@ -562,45 +661,63 @@ class HeightfieldSoil(SoilModel):
         m = self.material
         gamma = m.density_kg_m3 * GRAVITY_M_S2  # unit weight [N/m^3]
         width = self.bucket.width_m
-        floor_m = float(self.bucket.cutting_edge_xz[0] - self.bucket.polygon[0, 0])
         shear = width * (
-            gamma * depth_m**2 * UPLIFT_COEFFICIENT * math.tan(self.repose_angle_rad)
+            gamma * depth_m**2 * UPLIFT_COEFFICIENT * self._tan_repose
             + 2.0 * m.cohesion_pa * depth_m
         )
-        column = gamma * width * floor_m * depth_m - self.bucket_load_kg * GRAVITY_M_S2
+        column = gamma * width * self._floor_m * depth_m - self.bucket_load_kg * GRAVITY_M_S2
         return shear + max(column, 0.0)
 
     def _write_resistance(
-        self, force_n: float, heading: np.ndarray, breakout_n: float, *, lift_ratio: float = 0.0
+        self,
+        force_n: float,
+        heading: tuple[float, float] | np.ndarray,
+        breakout_n: float,
+        *,
+        lift_ratio: float = 0.0,
+        to_bucket: np.ndarray | None = None,
     ) -> None:
         """Caps and directions of the three soil dampers. ``force_n``: horizontal
         resistance [N]; ``lift_ratio``: upward over horizontal (0: horizontal only); the
         push damper then acts along the slanted direction, capped so that its horizontal
-        part is ``force_n``."""
-        gear, forcerange, biasprm = self._gear, self._forcerange, self._biasprm
-        to_bucket = self._xmat[self.machine.bucket_body].reshape(3, 3).T
+        part is ``force_n``. ``to_bucket``: world to bucket frame, if already at hand."""
+        rows, direction = self._damper_rows, self._direction
+        if to_bucket is None:
+            to_bucket = self._xmat[self.machine.bucket_body].reshape(3, 3).T
+        hx, hy = float(heading[0]), float(heading[1])
+        # each direction into the damper's gear row: np.dot's ``out`` writes the product of
+        # ``@`` there, bit for bit (the same BLAS call)
+        gear, forcerange, biasprm = rows["push"]
         if lift_ratio > 0.0:
             slant = math.hypot(1.0, lift_ratio)
-            push = np.array([heading[0], heading[1], -lift_ratio]) / slant  # forward-down
-            gear[self._push, :3] = to_bucket @ push
-            push_n = force_n * slant
+            direction[0], direction[1], direction[2] = hx / slant, hy / slant, -lift_ratio / slant
+            push_n = force_n * slant  # forward-down
         else:
-            gear[self._push, :3] = to_bucket @ np.array([heading[0], heading[1], 0.0])
+            direction[0], direction[1], direction[2] = hx, hy, 0.0
             push_n = force_n
-        gear[self._side, :3] = to_bucket @ np.array([-heading[1], heading[0], 0.0])
-        gear[self._lift, :3] = to_bucket @ UP
-        forcerange[self._push] = (-push_n, 0.0)
-        biasprm[self._push, 2] = -push_n / YIELD_SPEED_M_S
+        np.dot(to_bucket, direction, out=gear)
+        forcerange[0], forcerange[1] = -push_n, 0.0
+        biasprm[2] = -push_n / YIELD_SPEED_M_S
+        gear, forcerange, biasprm = rows["side"]
+        direction[0], direction[1], direction[2] = -hy, hx, 0.0
+        np.dot(to_bucket, direction, out=gear)
         side = SIDE_RATIO * force_n
-        forcerange[self._side] = (-side, side)
-        biasprm[self._side, 2] = -side / YIELD_SPEED_M_S
-        forcerange[self._lift] = (-breakout_n, breakout_n)
-        biasprm[self._lift, 2] = -breakout_n / YIELD_SPEED_M_S
+        forcerange[0], forcerange[1] = -side, side
+        biasprm[2] = -side / YIELD_SPEED_M_S
+        gear, forcerange, biasprm = rows["lift"]
+        np.dot(to_bucket, UP, out=gear)
+        forcerange[0], forcerange[1] = -breakout_n, breakout_n
+        biasprm[2] = -breakout_n / YIELD_SPEED_M_S
 
-    def _write_payload(self) -> None:
+    def _write_payload(self, *, unless_unchanged: bool = False) -> None:
+        """The load's mass and inertia into the payload body; ``unless_unchanged``: not
+        when the mass is the one last written (the bucket outside the pile)."""
         mass = max(self.bucket_load_kg, 1e-6)
+        if unless_unchanged and mass == self._payload_written_kg:
+            return
         self._body_mass[self._payload] = mass
-        self._body_inertia[self._payload] = mass * 0.02  # ~0.25 m radius of gyration
+        self._payload_inertia[:] = mass * 0.02  # ~0.25 m radius of gyration
+        self._payload_written_kg = mass
 
     def _sync_hfield(self) -> None:
         data = self.model.hfield_data
