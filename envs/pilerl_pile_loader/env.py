@@ -67,6 +67,11 @@ REWARD_PART_NAMES = (
 )
 
 
+# MuJoCo's warnings for a bad state (it resets the data when one fires): qpos, qvel, qacc
+_BAD_STATE_WARNINGS = slice(
+    int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQACC) + 1
+)
+
 class PileLoadingEnv(gym.Env):
     """Gymnasium environment of one wheel-loader scoop (see module docstring).
 
@@ -371,6 +376,14 @@ class PileLoadingEnv(gym.Env):
             raise RuntimeError(
                 f"simulation diverged (non-finite state) at t={self._elapsed_s:.3f} s; "
                 "check the condition overrides and machine parameters"
+            )
+        # MuJoCo itself resets a state with a NaN, Inf or huge qpos/qvel/qacc to the
+        # model's initial pose (and warns): the episode would go on from there unnoticed
+        if d.warning.number[_BAD_STATE_WARNINGS].any():
+            raise RuntimeError(
+                f"simulation diverged: MuJoCo found a non-finite or huge state and reset it, "
+                f"at t={self._elapsed_s:.3f} s; check the condition overrides and machine "
+                "parameters"
             )
 
     def _lag_blend(self, steps: int, chunk_dt: float) -> tuple[float, float]:
