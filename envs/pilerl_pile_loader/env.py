@@ -72,6 +72,7 @@ _BAD_STATE_WARNINGS = slice(
     int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQACC) + 1
 )
 
+
 class PileLoadingEnv(gym.Env):
     """Gymnasium environment of one wheel-loader scoop (see module docstring).
 

@@ -21,7 +21,10 @@ def test_a_non_finite_state_is_an_error_not_a_silent_reset(field):
 
 
 def test_the_soil_names_a_non_finite_bucket_position():
+    # a NaN position fails every "near the pile" comparison: without the check the soil
+    # took its far-from-the-pile path and wrote NaN soil forces into the model
     env = PileLoadingEnv()
     env.reset(seed=0)
+    env.data.xpos[env.machine.bucket_body] = np.nan
     with pytest.raises(RuntimeError, match="heightfield soil got a non-finite bucket position"):
-        env.soil._window(float("nan"), 1.0, 0.0, 1.0)
+        env.soil.update(0.05)

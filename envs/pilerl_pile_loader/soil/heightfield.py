@@ -354,6 +354,13 @@ class HeightfieldSoil(SoilModel):
             self._mouth_credit_m3 = self._mouth_credit_m3 * fade + swept_m3
         x_min, x_max, y_min, y_max = self._far_box
         if not (x_min <= hinge.item(0) <= x_max and y_min <= hinge.item(1) <= y_max):
+            if not (math.isfinite(hinge.item(0)) and math.isfinite(hinge.item(1))):
+                # NaN fails every comparison and lands here: the physics diverged
+                raise RuntimeError(
+                    "simulation diverged: the heightfield soil got a non-finite bucket "
+                    f"position {hinge.tolist()} m; check the condition overrides and "
+                    "machine parameters"
+                )
             # far from the pile (``_bind_far_box``): what the full update finds there,
             # without the polygon, the intake and the depth samples: nothing taken, depths
             # 0, no resistance; the load still spills and the dampers turn with the bucket
@@ -446,17 +453,10 @@ class HeightfieldSoil(SoilModel):
         self, x_min: float, x_max: float, y_min: float, y_max: float
     ) -> tuple[slice, slice] | None:
         """Grid index window (rows, cols) covering the box [x_min, x_max] x [y_min, y_max] [m]."""
-        try:
-            c0 = int(math.floor((x_min - self._x0) / self.dx))
-            c1 = int(math.ceil((x_max - self._x0) / self.dx)) + 1
-            r0 = int(math.floor((y_min - self._y0) / self.dy))
-            r1 = int(math.ceil((y_max - self._y0) / self.dy)) + 1
-        except (ValueError, OverflowError):  # NaN or infinite: the physics diverged
-            raise RuntimeError(
-                "simulation diverged: the heightfield soil got a non-finite bucket position "
-                f"(x {x_min}..{x_max}, y {y_min}..{y_max} m); check the condition overrides "
-                "and machine parameters"
-            ) from None
+        c0 = int(math.floor((x_min - self._x0) / self.dx))
+        c1 = int(math.ceil((x_max - self._x0) / self.dx)) + 1
+        r0 = int(math.floor((y_min - self._y0) / self.dy))
+        r1 = int(math.ceil((y_max - self._y0) / self.dy)) + 1
         c0, r0 = max(c0, 0), max(r0, 0)
         c1, r1 = min(c1, self.ncol), min(r1, self.nrow)
         if c0 >= c1 or r0 >= r1:
