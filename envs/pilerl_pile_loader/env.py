@@ -418,6 +418,8 @@ class PileLoadingEnv(gym.Env):
             noise = self.np_random.normal(0.0, self._noise_std).tolist()
             values = [value + n for value, n in zip(values, noise, strict=True)]
         # np.clip's rule on plain floats: NaN stays, below low gives low, above high high
+        # (one difference: np.clip(-0.0, 0.0, ...) keeps -0.0, this gives 0.0; no sensor
+        # reads exactly -0.0: pressures sit at least at the tank's, noise is never -0.0)
         clipped = []
         for value, (_, low, high) in zip(values, self._sensor_ranges, strict=True):
             value = value if (value != value or value > low) else low
