@@ -14,6 +14,7 @@ controller), the ranking is less likely to be an artefact of one model.
 
 from __future__ import annotations
 
+import json
 import math
 from collections import defaultdict
 from collections.abc import Sequence
@@ -25,7 +26,7 @@ from pilerl.runs import read_run_settings
 from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
 from pilerl.sweeps.hydra_record import HYDRA_DIR, job_directories, read_config
 
-from .results import Cell, JobSetup, TestResult, job_results, job_setup, pool_seeds
+from .results import WINTER, Cell, JobSetup, TestResult, job_results, job_setup, pool_seeds
 from .stats import kendall_tau_b
 
 EVERY_CONDITION = "every condition"  # the test pooling every evaluated condition
@@ -52,6 +53,9 @@ class SoilCells:
     unfinished: list[Path]
     pooled_conditions: tuple[str, ...] = ()
     members: dict[str, dict[str, set[tuple[str, ...]]]] = field(default_factory=dict)
+    # per soil and key, the mean bucket fill over the cell's episodes (the episode-weighted
+    # mean of the jobs' ``fill_mean``; absent where a summary has none)
+    fills: dict[str, dict[tuple[str, str, str, str], float]] = field(default_factory=dict)
 
     def comparable(self, soils: tuple[str, str], test: str) -> str | None:
         """Why ``test`` cannot be compared between ``soils`` (``None``: it can)."""
@@ -72,6 +76,7 @@ class EvaluateJob(NamedTuple):
     controller: Controller
     setup: JobSetup
     results: dict[str, TestResult]
+    fills: dict[str, float]  # per test in the summary: its mean fill
     conditions: tuple[str, ...]  # the simulator's conditions, in declared order
     groups: dict[str, tuple[str, ...]]  # the simulator's condition groups
 
@@ -121,7 +126,10 @@ def soil_cells(sweep_dirs: str | Path | Sequence[str | Path]) -> SoilCells:
         simulator = get_simulator(env.get("simulator", DEFAULT_SIMULATOR))
         setup = JobSetup(job_dir, *controller, seed=seed, config=config)
         groups = dict(simulator.condition_groups)
-        jobs.append(EvaluateJob(soil, controller, setup, results, simulator.conditions, groups))
+        fills = summary_fills(job_dir, results, groups)
+        jobs.append(
+            EvaluateJob(soil, controller, setup, results, fills, simulator.conditions, groups)
+        )
     shared = tuple(
         condition
         for condition in (jobs[0].conditions if jobs else ())
@@ -129,15 +137,31 @@ def soil_cells(sweep_dirs: str | Path | Sequence[str | Path]) -> SoilCells:
     )
     parts: dict[str, dict[tuple, list]] = defaultdict(lambda: defaultdict(list))
     pooled: dict[str, dict[str, set[tuple[str, ...]]]] = defaultdict(lambda: defaultdict(set))
+    fill_sums: dict[str, dict[tuple, list[float]]] = defaultdict(lambda: defaultdict(list))
     for job in jobs:
         if shared:
             job.results[EVERY_CONDITION] = pool_conditions(job.results, shared)
+            if all(c in job.fills for c in shared):
+                job.fills[EVERY_CONDITION] = sum(
+                    job.fills[c] * job.results[c].episodes for c in shared
+                ) / max(1, sum(job.results[c].episodes for c in shared))
         for test, result in job.results.items():
             parts[job.soil][(*job.controller, test)].append((job.setup, result))
             pooled[job.soil][test].add(pooled_members(test, job, shared))
+            if test in job.fills:
+                fill_sums[job.soil][(*job.controller, test)].append(
+                    (job.fills[test] * result.episodes, result.episodes)
+                )
     by_soil = {
         soil: {key: pool_seeds(members, cell=(soil, *key)) for key, members in cells.items()}
         for soil, cells in parts.items()
+    }
+    fills = {
+        soil: {
+            key: sum(f for f, _ in parts_) / max(1, sum(n for _, n in parts_))
+            for key, parts_ in keyed.items()
+        }
+        for soil, keyed in fill_sums.items()
     }
     return SoilCells(
         by_soil,
@@ -145,7 +169,31 @@ def soil_cells(sweep_dirs: str | Path | Sequence[str | Path]) -> SoilCells:
         unfinished,
         shared,
         {soil: dict(tests) for soil, tests in pooled.items()},
+        fills,
     )
+
+
+def summary_fills(
+    job_dir: Path, results: dict[str, TestResult], groups: dict[str, tuple[str, ...]]
+) -> dict[str, float]:
+    """Per test of ``results``, the mean bucket fill its ``summary.json`` entry gives (the
+    paper's single-winter alias ``winter`` takes its winter condition's, as
+    ``results.job_results`` takes its successes)."""
+    summary_file = job_dir / "summary.json"
+    try:
+        summary = json.loads(summary_file.read_text())
+    except (OSError, json.JSONDecodeError) as error:
+        raise ValueError(f"{summary_file}: unreadable ({error})") from None
+    fills = {}
+    for test in results:
+        entry = summary.get(test)
+        if entry is None and test == WINTER:  # the alias: the winter condition evaluated
+            winters = [name for name in summary if name in groups.get(WINTER, ())]
+            entry = summary.get(winters[0]) if winters else None
+        fill = entry.get("fill_mean") if isinstance(entry, dict) else None
+        if isinstance(fill, int | float) and math.isfinite(fill):
+            fills[test] = float(fill)
+    return fills
 
 
 def pooled_members(test: str, job: EvaluateJob, shared: tuple[str, ...]) -> tuple[str, ...]:
@@ -184,6 +232,10 @@ class SoilAgreement:
     controllers: list[Controller]
     rates: list[tuple[float, float]]  # per controller: (first soil, second soil)
     tau: float  # Kendall's tau-b over the controllers (nan: undefined, see ``tau_text``)
+    # per controller: (first soil, second soil) mean fill, and Kendall's tau-b over them;
+    # a graded view where success is mostly 0 or 1 on a soil (empty / nan: no fills)
+    fills: list[tuple[float, float]] = field(default_factory=list)
+    fill_tau: float = math.nan
 
     @property
     def gaps(self) -> list[float]:
@@ -239,4 +291,9 @@ def soil_agreement(
         )
     rates = [(first[(*c, test)].rate, second[(*c, test)].rate) for c in controllers]
     tau = kendall_tau_b([a for a, _ in rates], [b for _, b in rates])
-    return SoilAgreement(test, soils, controllers, rates, tau)
+    fill_of = [cells.fills.get(soil, {}) for soil in soils]
+    fills, fill_tau = [], math.nan
+    if all((*c, test) in f for c in controllers for f in fill_of):
+        fills = [(fill_of[0][(*c, test)], fill_of[1][(*c, test)]) for c in controllers]
+        fill_tau = kendall_tau_b([a for a, _ in fills], [b for _, b in fills])
+    return SoilAgreement(test, soils, controllers, rates, tau, fills, fill_tau)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 import torch
 from tensordict import TensorDict
@@ -30,9 +30,17 @@ from .plots import plot_ensemble, plot_losses
 
 if TYPE_CHECKING:
     from pilerl.data import EpisodeStore
-    from pilerl.recipe import Run
 
     from .settings import TrainBCConfig
+
+
+class RecordedRun(Protocol):
+    """What ``begin_bc_run`` needs of a recipe's run (``pilerl.recipe.Run``, a floor up)."""
+
+    settings: dict[str, Any]
+
+    def begin(self, **record: Any) -> None: ...
+
 
 log = logging.getLogger(__name__)
 
@@ -95,7 +103,7 @@ def drawn_masks(dropout_masks: str | None, *, ensemble_seeds: int) -> str:
     return ENSEMBLE_DEFAULT_MASKS if ensemble_seeds > 1 else BC_DEFAULT_MASKS
 
 
-def begin_bc_run(run: Run, config: TrainBCConfig, train_store: EpisodeStore) -> None:
+def begin_bc_run(run: RecordedRun, config: TrainBCConfig, train_store: EpisodeStore) -> None:
     """Record a ``train_bc`` run in its directory, or stop there (``Run.begin``): a finished
     run is skipped, another config or dataset refused. The record holds the dropout masks
     drawn (``null`` as the name it stands for, and runs recorded before the key as the

@@ -374,6 +374,43 @@ def test_soils_without_a_shared_condition_are_reported_not_crashed(tmp_path):
     assert not (tmp_path / "fresh").exists()
 
 
+def test_mean_fill_ranks_controllers_where_success_ties(tmp_path):
+    # particles: every controller fails (success tau undefined) but fills differ; the
+    # fill tau compares the rankings the soils' fills give, episode-weighted over seeds
+    train = tmp_path / "train"
+    fills = {"rf": ((0.9, 0.8), 0.30), "nnetv2": ((0.5, 0.5), 0.10), "dannet": ((0.7, 0.7), 0.20)}
+    n = 0
+    for policy, (hf_fills, pt_fill) in fills.items():
+        for seed, hf_fill in enumerate(hf_fills):
+            run = seeded_job(train, n, policy=policy, seed=seed, wins={"summer": [True]})
+            for soil, fill, wins in (
+                ("heightfield", hf_fill, [True] * 2),
+                ("particles", pt_fill, [False] * 2),
+            ):
+                job = seeded_job(
+                    tmp_path / soil,
+                    n,
+                    policy=policy,
+                    seed=seed,
+                    soil=soil,
+                    checkpoint=str(run / "best.pt"),
+                    wins={"summer": wins},
+                )
+                summary = json.loads((job / "summary.json").read_text())
+                summary["summer"]["fill_mean"] = fill
+                (job / "summary.json").write_text(json.dumps(summary))
+            n += 1
+    sweeps = [tmp_path / "heightfield", tmp_path / "particles"]
+    agreement = soil_agreement(soil_cells(sweeps), ("heightfield", "particles"))
+    assert math.isnan(agreement.tau)
+    assert [c[0] for c in agreement.controllers] == ["dannet", "nnetv2", "rf"]
+    assert agreement.fills == [(0.7, 0.2), (0.5, 0.1), (pytest.approx(0.85), 0.3)]
+    assert agreement.fill_tau == pytest.approx(1.0)
+    text = build_report(out_dir=tmp_path / "report", cross_soil=sweeps)[0].read_text()
+    assert "| no (τ undefined) | 1.00 |" in text
+    assert "| RF | + p_t | D_II | 100% | 0% | +100 points | 0.85 | 0.30 |" in text
+
+
 def test_a_repeated_seed_is_refused_naming_the_cell_the_seed_and_the_jobs(tmp_path):
     # a sweep run twice into one tree: two finished jobs of DANNet seed 2, same outcomes
     sweep = tmp_path / "exp"
