@@ -276,26 +276,33 @@ def test_cross_soil_report_gives_tau_and_the_gap_per_controller(tmp_path):
     assert "Soil model `particles`:" in text and "| wet_clay |" in text
 
 
+def soil_jobs(
+    root: Path, n: int, *, policy: str, seed: int, wins: dict[str, dict[str, list[bool]]]
+) -> list[Path]:
+    """Training job ``n`` under ``root / "train"`` and, per soil of ``wins``, its evaluate
+    job in that soil's own sweep ``root / soil`` (``wins[soil]``: condition -> outcomes)."""
+    run = seeded_job(root / "train", n, policy=policy, seed=seed, wins={"summer": [True]})
+    checkpoint = str(run / "best.pt")
+    return [
+        seeded_job(
+            root / soil, n, policy=policy, seed=seed, soil=soil, checkpoint=checkpoint, wins=w
+        )
+        for soil, w in wins.items()
+    ]
+
+
+def outcomes(successes: int, episodes: int = 4) -> list[bool]:
+    return [True] * successes + [False] * (episodes - successes)
+
+
 def test_soils_in_separate_sweeps_pool_only_the_conditions_both_evaluated(tmp_path):
     # heightfield on summer and wet_clay, particles (slower) on summer only, each in its
     # own sweep: 'every condition' must compare summer with summer, not wet_clay too
-    train = tmp_path / "train"
     rates = {"rf": (4, 0, 3), "dannet": (1, 4, 2)}  # heightfield summer, wet_clay; particles
     for n, (policy, (hf_summer, hf_clay, pt_summer)) in enumerate(rates.items()):
-        run = seeded_job(train, n, policy=policy, seed=0, wins={"summer": [True]})
-        for soil, wins in (
-            ("heightfield", {"summer": hf_summer, "wet_clay": hf_clay}),
-            ("particles", {"summer": pt_summer}),
-        ):
-            seeded_job(
-                tmp_path / soil,
-                n,
-                policy=policy,
-                seed=0,
-                soil=soil,
-                checkpoint=str(run / "best.pt"),
-                wins={c: [True] * k + [False] * (4 - k) for c, k in wins.items()},
-            )
+        heightfield = {"summer": outcomes(hf_summer), "wet_clay": outcomes(hf_clay)}
+        wins = {"heightfield": heightfield, "particles": {"summer": outcomes(pt_summer)}}
+        soil_jobs(tmp_path, n, policy=policy, seed=0, wins=wins)
     cells = soil_cells([tmp_path / "heightfield", tmp_path / "particles"])
     assert cells.pooled_conditions == ("summer",) and len(cells.finished) == 4
     agreement = soil_agreement(cells, ("heightfield", "particles"))
@@ -314,22 +321,12 @@ def test_soils_in_separate_sweeps_pool_only_the_conditions_both_evaluated(tmp_pa
 def test_a_group_is_compared_across_soils_only_where_it_pools_the_same_conditions(tmp_path):
     # heightfield on winter A-D, particles on winter C alone: both have a 'winter' test
     # (particles' is winter C), which must not be compared; winter C itself is
-    train = tmp_path / "train"
     days = ("winter_a", "winter_b", "winter_c", "winter_d")
     for n, (policy, c_wins) in enumerate({"rf": 4, "dannet": 1}.items()):
-        run = seeded_job(train, n, policy=policy, seed=0, wins={"summer": [True]})
-        hf = {day: [True] * c_wins + [False] * (4 - c_wins) for day in days}
-        hf["winter_a"] = [True] * (4 - c_wins) + [False] * c_wins  # ranks A-D the other way
-        for soil, wins in (("heightfield", hf), ("particles", {"winter_c": hf["winter_c"]})):
-            seeded_job(
-                tmp_path / soil,
-                n,
-                policy=policy,
-                seed=0,
-                soil=soil,
-                checkpoint=str(run / "best.pt"),
-                wins=wins,
-            )
+        hf = {day: outcomes(c_wins) for day in days}
+        hf["winter_a"] = outcomes(4 - c_wins)  # ranks A-D the other way
+        wins = {"heightfield": hf, "particles": {"winter_c": hf["winter_c"]}}
+        soil_jobs(tmp_path, n, policy=policy, seed=0, wins=wins)
     sweeps = [tmp_path / "heightfield", tmp_path / "particles"]
     cells = soil_cells(sweeps)
     pair = ("heightfield", "particles")
@@ -348,19 +345,9 @@ def test_a_group_is_compared_across_soils_only_where_it_pools_the_same_condition
 
 
 def test_soils_without_a_shared_condition_are_reported_not_crashed(tmp_path):
-    train = tmp_path / "train"
     for n, policy in enumerate(("rf", "dannet")):
-        run = seeded_job(train, n, policy=policy, seed=0, wins={"summer": [True]})
-        for soil, condition in (("heightfield", "summer"), ("particles", "winter_c")):
-            seeded_job(
-                tmp_path / soil,
-                n,
-                policy=policy,
-                seed=0,
-                soil=soil,
-                checkpoint=str(run / "best.pt"),
-                wins={condition: [True, False]},
-            )
+        wins = {"heightfield": {"summer": [True, False]}, "particles": {"winter_c": [True, False]}}
+        soil_jobs(tmp_path, n, policy=policy, seed=0, wins=wins)
     sweeps = [tmp_path / "heightfield", tmp_path / "particles"]
     cells = soil_cells(sweeps)
     assert cells.pooled_conditions == ()
@@ -377,25 +364,13 @@ def test_soils_without_a_shared_condition_are_reported_not_crashed(tmp_path):
 def test_mean_fill_ranks_controllers_where_success_ties(tmp_path):
     # particles: every controller fails (success tau undefined) but fills differ; the
     # fill tau compares the rankings the soils' fills give, episode-weighted over seeds
-    train = tmp_path / "train"
     fills = {"rf": ((0.9, 0.8), 0.30), "nnetv2": ((0.5, 0.5), 0.10), "dannet": ((0.7, 0.7), 0.20)}
     n = 0
     for policy, (hf_fills, pt_fill) in fills.items():
         for seed, hf_fill in enumerate(hf_fills):
-            run = seeded_job(train, n, policy=policy, seed=seed, wins={"summer": [True]})
-            for soil, fill, wins in (
-                ("heightfield", hf_fill, [True] * 2),
-                ("particles", pt_fill, [False] * 2),
-            ):
-                job = seeded_job(
-                    tmp_path / soil,
-                    n,
-                    policy=policy,
-                    seed=seed,
-                    soil=soil,
-                    checkpoint=str(run / "best.pt"),
-                    wins={"summer": wins},
-                )
+            wins = {"heightfield": {"summer": [True] * 2}, "particles": {"summer": [False] * 2}}
+            jobs = soil_jobs(tmp_path, n, policy=policy, seed=seed, wins=wins)
+            for job, fill in zip(jobs, (hf_fill, pt_fill), strict=True):
                 summary = json.loads((job / "summary.json").read_text())
                 summary["summer"]["fill_mean"] = fill
                 (job / "summary.json").write_text(json.dumps(summary))
