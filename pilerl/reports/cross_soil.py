@@ -14,7 +14,6 @@ controller), the ranking is less likely to be an artefact of one model.
 
 from __future__ import annotations
 
-import json
 import math
 from collections import defaultdict
 from collections.abc import Sequence
@@ -26,7 +25,7 @@ from pilerl.runs import read_run_settings
 from pilerl.sim import DEFAULT_SIMULATOR, get_simulator
 from pilerl.sweeps.hydra_record import HYDRA_DIR, job_directories, read_config
 
-from .results import WINTER, Cell, JobSetup, TestResult, job_results, job_setup, pool_seeds
+from .results import Cell, JobSetup, TestResult, job_results, job_setup, pool_seeds
 from .stats import kendall_tau_b
 
 EVERY_CONDITION = "every condition"  # the test pooling every evaluated condition
@@ -126,7 +125,7 @@ def soil_cells(sweep_dirs: str | Path | Sequence[str | Path]) -> SoilCells:
         simulator = get_simulator(env.get("simulator", DEFAULT_SIMULATOR))
         setup = JobSetup(job_dir, *controller, seed=seed, config=config)
         groups = dict(simulator.condition_groups)
-        fills = summary_fills(job_dir, results, groups)
+        fills = {t: r.fill_mean for t, r in results.items() if r.fill_mean is not None}
         jobs.append(
             EvaluateJob(soil, controller, setup, results, fills, simulator.conditions, groups)
         )
@@ -171,29 +170,6 @@ def soil_cells(sweep_dirs: str | Path | Sequence[str | Path]) -> SoilCells:
         {soil: dict(tests) for soil, tests in pooled.items()},
         fills,
     )
-
-
-def summary_fills(
-    job_dir: Path, results: dict[str, TestResult], groups: dict[str, tuple[str, ...]]
-) -> dict[str, float]:
-    """Per test of ``results``, the mean bucket fill its ``summary.json`` entry gives (the
-    paper's single-winter alias ``winter`` takes its winter condition's, as
-    ``results.job_results`` takes its successes)."""
-    summary_file = job_dir / "summary.json"
-    try:
-        summary = json.loads(summary_file.read_text())
-    except (OSError, json.JSONDecodeError) as error:
-        raise ValueError(f"{summary_file}: unreadable ({error})") from None
-    fills = {}
-    for test in results:
-        entry = summary.get(test)
-        if entry is None and test == WINTER:  # the alias: the winter condition evaluated
-            winters = [name for name in summary if name in groups.get(WINTER, ())]
-            entry = summary.get(winters[0]) if winters else None
-        fill = entry.get("fill_mean") if isinstance(entry, dict) else None
-        if isinstance(fill, int | float) and math.isfinite(fill):
-            fills[test] = float(fill)
-    return fills
 
 
 def pooled_members(test: str, job: EvaluateJob, shared: tuple[str, ...]) -> tuple[str, ...]:

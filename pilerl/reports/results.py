@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -139,6 +140,7 @@ class TestResult:
     episodes: int
     failure_modes: dict[str, int]
     outcomes: dict[tuple[str, int], bool]  # (condition, start seed) -> success
+    fill_mean: float | None = None  # mean bucket fill (1 = rated load); None: not recorded
 
 
 def job_results(evaluation_dir: Path, config: dict) -> dict[str, TestResult] | None:
@@ -173,8 +175,16 @@ def job_results(evaluation_dir: Path, config: dict) -> dict[str, TestResult] | N
             episodes=int(row["episodes"]),
             failure_modes={m: int(n) for m, n in row.get("failure_modes", {}).items()},
             outcomes=outcomes,
+            fill_mean=finite_or_none(row.get("fill_mean")),
         )
     return results
+
+
+def finite_or_none(value: object) -> float | None:
+    """``value`` as a float if it is a finite number, else ``None``."""
+    if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
+        return float(value)
+    return None
 
 
 def read_episode_outcomes(path: Path) -> dict[tuple[str, int], bool]:

@@ -13,7 +13,7 @@ from pilerl.reports import paper_numbers
 from pilerl.reports.comparisons import compare, threshold
 from pilerl.reports.cross_soil import EVERY_CONDITION, soil_agreement, soil_cells
 from pilerl.reports.paper import build_report, check_claim
-from pilerl.reports.results import Cell, closed_loop_cells
+from pilerl.reports.results import Cell, closed_loop_cells, job_results
 from pilerl.reports.stats import fisher_greater_p, kendall_tau_b, sign_flip_p
 
 # --- exact tests against hand-computed values ---------------------------------------------
@@ -487,3 +487,33 @@ def test_a_checkpoint_outside_a_train_bc_job_is_named_by_its_directory(tmp_path)
     assert controller_of(None, None) == (("scripted", "", ""), 0)
     train = seeded_job(tmp_path / "train", 0, policy="annet", seed=2, wins={"summer": [True]})
     assert controller_of(str(train / "best.pt"), None) == (("annet", "s_pt", "d_ii"), 2)
+
+
+def test_job_results_carry_the_mean_fill_only_where_it_is_a_finite_number(tmp_path):
+    # one read of summary.json gives each test's successes and its mean fill; the
+    # paper's single-winter alias takes its winter condition's fill with its successes
+    job = tmp_path / "job"
+    job.mkdir()
+    row = {"successes": 1, "episodes": 2, "failure_modes": {}}
+    summary = {
+        "summer": {**row, "fill_mean": 0.62},
+        "winter_c": {**row, "fill_mean": 0.31},
+        "winter_a": {**row, "fill_mean": float("nan")},
+        "winter_b": {**row, "fill_mean": True},
+        "winter_d": dict(row),
+        "winter": {**row, "fill_mean": 0.4},  # the pooled group, as evaluate writes it
+    }
+    (job / "summary.json").write_text(json.dumps(summary))
+    results = job_results(job, {})
+    fills = {test: result.fill_mean for test, result in results.items()}
+    assert fills == {
+        "summer": 0.62,
+        "winter_c": 0.31,
+        "winter_a": None,
+        "winter_b": None,
+        "winter_d": None,
+        "winter": 0.4,
+    }
+    del summary["winter_a"], summary["winter_b"], summary["winter_d"], summary["winter"]
+    (job / "summary.json").write_text(json.dumps(summary))
+    assert job_results(job, {})["winter"].fill_mean == 0.31
