@@ -84,7 +84,10 @@ def controller_of(checkpoint: str | None, name: str | None) -> tuple[Controller,
     """The controller a checkpoint holds and its training seed.
 
     A checkpoint in a ``train_bc`` job directory (or that directory): its controller,
-    sensor set, dataset and seed. Otherwise (a fine-tuned actor, a file elsewhere) the
+    sensor set, dataset and seed. A checkpoint of a ``finetune`` run: the cloned
+    controller it started from (its run's ``checkpoint``, read the same way), named
+    ``<controller>+<algorithm>`` (``dannet+ppo``), with that controller's seed: each
+    fine-tuned seed is one cloned seed fine-tuned. Otherwise (a file elsewhere) the
     evaluation's ``name`` or the checkpoint's directory name, and seed 0; ``scripted``
     without a checkpoint.
     """
@@ -99,6 +102,10 @@ def controller_of(checkpoint: str | None, name: str | None) -> tuple[Controller,
     if "train_data" in config:  # a train_bc job
         setup: JobSetup = job_setup(run_dir)
         return (setup.controller, setup.sensors, setup.dataset), setup.seed
+    algorithm = (config.get("algorithm") or {}).get("name")
+    if config.get("checkpoint") and algorithm:  # a finetune run, from a cloned controller
+        (controller, sensors, dataset), seed = controller_of(str(config["checkpoint"]), None)
+        return (f"{controller}+{algorithm}", sensors, dataset), seed
     return (name or run_dir.name, "", ""), 0
 
 

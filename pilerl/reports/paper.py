@@ -50,14 +50,20 @@ CONTROLLER_LABELS = {
 DATASET_LABELS = {"d_i": "D_I", "d_ii": "D_II"}
 
 
+def controller_text(controller: str) -> str:
+    """A controller's name in the report: ``dannet`` -> DANNet, a fine-tuned
+    ``dannet+ppo`` (``cross_soil.controller_of``) -> DANNet + PPO."""
+    cloned, _, algorithm = controller.partition("+")
+    label = CONTROLLER_LABELS.get(cloned, cloned)
+    return f"{label} + {algorithm.upper()}" if algorithm else label
+
+
 def _percent(x: float) -> str:
     return f"{100 * x:.0f}%"
 
 
 def _controller_label(controller: str, sensors: str) -> str:
-    return (
-        f"{CONTROLLER_LABELS.get(controller, controller)} [{SENSOR_LABELS.get(sensors, sensors)}]"
-    )
+    return f"{controller_text(controller)} [{SENSOR_LABELS.get(sensors, sensors)}]"
 
 
 def _label(key: Key) -> str:
@@ -86,7 +92,7 @@ def comparison_rows(paper: dict[Key, int], cells: dict[Key, Cell]) -> list[list[
     for key, paper_percent in paper.items():
         controller, sensors, dataset, test = key
         row = [
-            CONTROLLER_LABELS.get(controller, controller),
+            controller_text(controller),
             SENSOR_LABELS.get(sensors, sensors),
             DATASET_LABELS.get(dataset, dataset),
             test,
@@ -264,7 +270,7 @@ def condition_rows(
     for controller, sensors, dataset in controllers:
         seeds = max(c.seeds for k, c in cells.items() if k[:3] == (controller, sensors, dataset))
         row = [
-            CONTROLLER_LABELS.get(controller, controller),
+            controller_text(controller),
             SENSOR_LABELS.get(sensors, sensors),
             DATASET_LABELS.get(dataset, dataset),
             str(seeds),
@@ -362,7 +368,7 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
         final[(c.controller, c.sensors, c.dataset)] = c.validation_mean[-1]
         rows.append(
             [
-                CONTROLLER_LABELS.get(c.controller, c.controller),
+                controller_text(c.controller),
                 SENSOR_LABELS.get(c.sensors, c.sensors),
                 DATASET_LABELS.get(c.dataset, c.dataset),
                 c.seeds,
@@ -578,7 +584,7 @@ def add_cross_soil(report: Report, sweep_dirs: Sequence[Path]) -> None:
         ["controller", "inputs", "data", pair[0], pair[1], "gap", *(f"fill {s}" for s in pair)],
         [
             [
-                CONTROLLER_LABELS.get(c[0], c[0]),
+                controller_text(c[0]),
                 SENSOR_LABELS.get(c[1], c[1]),
                 DATASET_LABELS.get(c[2], c[2]),
                 _percent(a),

@@ -517,3 +517,33 @@ def test_job_results_carry_the_mean_fill_only_where_it_is_a_finite_number(tmp_pa
     del summary["winter_a"], summary["winter_b"], summary["winter_d"], summary["winter"]
     (job / "summary.json").write_text(json.dumps(summary))
     assert job_results(job, {})["winter"].fill_mean == 0.31
+
+
+def test_fine_tuned_controllers_are_their_cloned_seeds_fine_tuned(tmp_path):
+    # a finetune run started from cloned seed k is DANNet + PPO seed k, beside the cloned
+    # DANNet itself: three fine-tuned seeds pool into one cell, not a repeated seed 0
+    for seed in range(3):
+        cloned = seeded_job(tmp_path / "train", seed, policy="dannet", seed=seed, wins={})
+        tuned = tmp_path / "finetune" / f"seed{seed}"
+        (tuned / ".hydra").mkdir(parents=True)
+        settings = {"checkpoint": str(cloned / "best.pt"), "algorithm": {"name": "ppo"}}
+        (tuned / ".hydra" / "config.yaml").write_text(yaml.safe_dump(settings))
+        for soil, rates in {"heightfield": (2, 4), "particles": (1, 3)}.items():
+            for k, (checkpoint, successes) in enumerate(zip((cloned, tuned), rates, strict=True)):
+                seeded_job(
+                    tmp_path / soil,
+                    2 * seed + k,
+                    policy="dannet",
+                    seed=seed,
+                    soil=soil,
+                    checkpoint=str(checkpoint / "best.pt"),
+                    wins={"summer": outcomes(successes)},
+                )
+    cells = soil_cells([tmp_path / "heightfield", tmp_path / "particles"])
+    tuned_cell = cells.by_soil["particles"][("dannet+ppo", "s_pt", "d_ii", "summer")]
+    assert (tuned_cell.seeds, tuned_cell.successes, tuned_cell.episodes) == (3, 9, 12)
+    text = build_report(
+        out_dir=tmp_path / "report", cross_soil=[tmp_path / "heightfield", tmp_path / "particles"]
+    )[0].read_text()
+    assert "| DANNet + PPO | + p_t | D_II | 100% | 75% | +25 points |" in text
+    assert "| DANNet | + p_t | D_II | 50% | 25% | +25 points |" in text
