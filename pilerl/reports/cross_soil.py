@@ -102,7 +102,9 @@ def controller_of(checkpoint: str | None, name: str | None) -> tuple[Controller,
     if "train_data" in config:  # a train_bc job
         setup: JobSetup = job_setup(run_dir)
         return (setup.controller, setup.sensors, setup.dataset), setup.seed
-    algorithm = (config.get("algorithm") or {}).get("name")
+    algorithm = config.get("algorithm")
+    if isinstance(algorithm, dict):  # a finetune run's config group
+        algorithm = algorithm.get("name")
     if config.get("checkpoint") and algorithm:  # a finetune run, from a cloned controller
         (controller, sensors, dataset), seed = controller_of(str(config["checkpoint"]), None)
         return (f"{controller}+{algorithm}", sensors, dataset), seed
