@@ -6,6 +6,7 @@
 #   bash scripts/paper_experiments.sh A        # Exp. 1, Exp. 3, the heightfield cross-soil sweep
 #   bash scripts/paper_experiments.sh B        # Exp. 2, Exp. 4 (30 seeds)
 #   bash scripts/paper_experiments.sh C        # the particle cross-soil sweep (after Exp. 3)
+#   bash scripts/paper_experiments.sh D        # DANNet + p_t fine-tuned (PPO), on both soils
 #   bash scripts/paper_experiments.sh report   # docs/results/paper from whatever has finished
 #
 # A and B may run at the same time (one core each), after prep; C after A's Exp. 3 (the
@@ -69,6 +70,25 @@ C)
         evaluation.episodes=4 evaluation.workers=1 evaluation.videos=false \
         hydra.sweep.dir=multirun/cross_soil_particles
     ;;
+D)
+    for seed in 0 1 2; do  # Exp. 3's DANNet + p_t on D_II, seeds 0-2 (jobs 15, 33, 51)
+        step "finetune_seed$seed" recipes/finetune.py \
+            "checkpoint=multirun/exp3_attention/$((15 + 18 * seed))/best.pt" \
+            curriculum=winter_focus curriculum.stages.0.frames=200000 "seed=$seed" \
+            "hydra.run.dir=multirun/finetune_exp3/dannet_pt_d_ii_seed$seed"
+    done
+    tuned=multirun/finetune_exp3/dannet_pt_d_ii_seed0/best.pt
+    tuned+=,multirun/finetune_exp3/dannet_pt_d_ii_seed1/best.pt
+    tuned+=,multirun/finetune_exp3/dannet_pt_d_ii_seed2/best.pt
+    step cross_soil_heightfield_finetuned recipes/evaluate.py --multirun env.soil=heightfield \
+        "checkpoint=$tuned" "evaluation.conditions=[summer,winter,held_out]" \
+        evaluation.episodes=10 evaluation.workers=1 evaluation.videos=false \
+        hydra.sweep.dir=multirun/cross_soil_heightfield_finetuned
+    step cross_soil_particles_finetuned recipes/evaluate.py --multirun env.soil=particles \
+        "checkpoint=$tuned" "evaluation.conditions=[summer,winter_c]" \
+        evaluation.episodes=4 evaluation.workers=1 evaluation.videos=false \
+        hydra.sweep.dir=multirun/cross_soil_particles_finetuned
+    ;;
 report)
     args=()
     for n in 1 2 3 4; do
@@ -76,8 +96,8 @@ report)
         [ -n "$dir" ] && args+=("--exp$n" "$dir")
     done
     soils=()
-    for soil in heightfield particles; do
-        [ -d "multirun/cross_soil_$soil" ] && soils+=("multirun/cross_soil_$soil")
+    for dir in multirun/cross_soil_*; do  # one sweep per soil, and any parts and additions
+        [ -d "$dir" ] && soils+=("$dir")
     done
     [ ${#soils[@]} -gt 0 ] && args+=(--cross-soil "${soils[@]}")
     step report -m pilerl.reports.paper "${args[@]}" \
@@ -86,7 +106,7 @@ report)
         --figure-demos data/demos/winter_c_validation --out docs/results/paper
     ;;
 *)
-    echo "usage: bash scripts/paper_experiments.sh prep|A|B|C|report" >&2
+    echo "usage: bash scripts/paper_experiments.sh prep|A|B|C|D|report" >&2
     exit 2
     ;;
 esac
