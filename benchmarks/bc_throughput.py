@@ -46,16 +46,20 @@ import argparse
 import os
 import resource
 import time
+from contextlib import nullcontext
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
+import torch.nn.functional as F  # noqa: E402
 from tensordict import TensorDict  # noqa: E402
 from torchrl.objectives import BCLoss  # noqa: E402
 
 from pilerl.policies import make_actor  # noqa: E402
 from pilerl.training import BCSettings, train_bc, train_bc_ensemble  # noqa: E402
+from pilerl.training.draw_ahead import masks_ahead  # noqa: E402
+from pilerl.training.dropout_masks import dropout_masks  # noqa: E402
 from pilerl.training.ensemble import MEMBERS_PER_PASS  # noqa: E402
 
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
@@ -66,6 +70,10 @@ STATS = {
     "n_samples": 1,
 }
 PAPER_SAMPLES, PAPER_EPOCHS = 709_368, 150
+BASELINES = {  # --paper's "before" loop
+    "bcloss": "BCLoss on tensordicts (before)",
+    "previous": "train_bc as of e32a7b4 (torch's RAdam step)",
+}
 BATCH = 512
 
 
@@ -110,6 +118,52 @@ def bcloss_loop(
     return actor
 
 
+def previous_train_bc(
+    actor, data: TensorDict, settings: BCSettings, epoch_times: list[float], *, draw_ahead=False,
+    say=None,
+):  # fmt: skip
+    """``train_bc``'s gradient loop as of e32a7b4 (before ``FlatRAdam`` and ``index_select``):
+    torch's RAdam step, one parameter after another, and advanced-index row gathers; with
+    ``draw_ahead``, torch's masks drawn ahead as ``train_bc`` draws them."""
+    policy = actor.module
+    torch.manual_seed(settings.seed)
+    data = data.select(*policy.in_keys, "action")
+    optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
+    inputs, attention_inputs = policy.controller_inputs(data)
+    target, n = data["action"], data.batch_size[0]
+    controller = policy.controller
+    ahead = (
+        masks_ahead(controller, lambda: controller(inputs[:1], attention_inputs[:1]))
+        if draw_ahead
+        else nullcontext(None)
+    )
+    with dropout_masks(policy, settings.dropout_masks or "bernoulli"), ahead as feed:
+        for epoch in range(settings.epochs):
+            start = time.perf_counter()
+            policy.train()
+            generator = torch.Generator().manual_seed(settings.seed * 1_000_003 + epoch)
+            order = torch.randperm(n, generator=generator)
+            starts = range(0, n, settings.batch_size)
+            if feed is not None:
+                feed.start_epoch([len(order[i : i + settings.batch_size]) for i in starts])
+            for i in starts:
+                rows = order[i : i + settings.batch_size]
+                if feed is not None:
+                    feed.next_step()
+                predicted = controller(inputs[rows], attention_inputs[rows]).action
+                loss = F.mse_loss(predicted, target[rows], reduction="none").mean()
+                optimizer.zero_grad()
+                loss.backward()
+                optimizer.step()
+                float(loss.detach())
+            if feed is not None:
+                feed.end_epoch()
+            epoch_times.append(time.perf_counter() - start)
+            if say is not None:
+                say(f"previous train_bc: epoch {epoch + 1} took {epoch_times[-1]:.1f} s")
+    return actor
+
+
 def plain_loop(data: TensorDict, epochs: int) -> None:
     """The same training written directly against the modules."""
     policy = fresh_actor().module
@@ -143,6 +197,12 @@ def throughput(args: argparse.Namespace) -> None:
     paths = {
         "BCLoss on tensordicts (before)": lambda: bcloss_loop(fresh_actor(), data, settings, []),
         "plain PyTorch loop": lambda: plain_loop(data, args.epochs),
+        "train_bc as of e32a7b4 (torch's RAdam step)": lambda: previous_train_bc(
+            fresh_actor(), data, settings, []
+        ),
+        "train_bc as of e32a7b4, masks drawn ahead": lambda: previous_train_bc(
+            fresh_actor(), data, settings, [], draw_ahead=True
+        ),
         "pilerl train_bc": lambda: train_bc(fresh_actor(), data, None, settings, progress=False),
         "pilerl train_bc, packed masks": lambda: train_bc(
             fresh_actor(), data, None, packed, progress=False
@@ -210,11 +270,18 @@ def paper_schedule(args: argparse.Namespace) -> None:
     train_bc(fresh_actor(), warm_up, None, BCSettings(epochs=1), progress=False)
     before, before_epochs, before_wall = None, [], float("nan")
     if not args.train_bc_only:
-        bcloss_loop(fresh_actor(), warm_up, BCSettings(epochs=1), [])
+        say = lambda line: print(line, flush=True)  # noqa: E731
+        if args.baseline == "previous":
+
+            def baseline(actor, data, settings, times, say=None):
+                return previous_train_bc(
+                    actor, data, settings, times, draw_ahead=args.draw_ahead, say=say
+                )
+        else:
+            baseline = bcloss_loop
+        baseline(fresh_actor(), warm_up, BCSettings(epochs=1), [])
         start = time.perf_counter()
-        before = bcloss_loop(
-            fresh_actor(), data, settings, before_epochs, say=lambda line: print(line, flush=True)
-        )
+        before = baseline(fresh_actor(), data, settings, before_epochs, say=say)
         before_wall = time.perf_counter() - start
 
     class EpochClock:
@@ -253,7 +320,8 @@ def paper_schedule(args: argparse.Namespace) -> None:
     ahead = ", drawn ahead" if args.draw_ahead else ""
     rows = [(f"pilerl train_bc ({args.dropout_masks} masks{ahead})", after_epochs, after_wall)]
     if before is not None:
-        rows.insert(0, ("BCLoss on tensordicts (before)", before_epochs, before_wall))
+        name = BASELINES[args.baseline] + (ahead if args.baseline == "previous" else "")
+        rows.insert(0, (name, before_epochs, before_wall))
     for name, epochs, wall in rows:
         listed = f"{np.median(epochs):.1f} ({min(epochs):.1f}-{max(epochs):.1f})"
         if len(epochs) == PAPER_EPOCHS:
@@ -265,7 +333,8 @@ def paper_schedule(args: argparse.Namespace) -> None:
         return
     per_epoch = [b / a for a, b in zip(after_epochs, before_epochs, strict=True)]
     print(
-        f"\nper-epoch speed-up of train_bc over the BCLoss loop (median over epochs): "
+        f"\nper-epoch speed-up of train_bc over the {BASELINES[args.baseline]} (median over "
+        f"epochs): "
         f"{np.median(per_epoch):.2f}x; final weights bit-identical: {same}"
     )
 
@@ -348,6 +417,13 @@ def main() -> None:
     )
     parser.add_argument(
         "--draw-ahead", action="store_true", help="with --paper: train_bc(draw_ahead=True)"
+    )
+    parser.add_argument(
+        "--baseline",
+        choices=sorted(BASELINES),
+        default="bcloss",
+        help="with --paper: the loop train_bc is compared with (previous: train_bc's step as "
+        "of e32a7b4, torch's RAdam, with --draw-ahead and --dropout-masks as train_bc's)",
     )
     parser.add_argument(
         "--pass-sizes", type=int, nargs="*", default=[], help="more ensemble pass sizes"

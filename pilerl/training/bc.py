@@ -58,6 +58,7 @@ from pilerl.policies.registry import get_spec
 
 from .draw_ahead import MasksAhead, masks_ahead
 from .dropout_masks import check_dropout_masks, dropout_masks
+from .flat_radam import FlatRAdam
 
 log = logging.getLogger(__name__)
 TRAINERS = ("gradient", "levenberg_marquardt", "fit")
@@ -192,6 +193,8 @@ def train_bc(
     if layout is not None and layout.bc_state.exists():
         policy, optimizer, history, best = _resume(layout.bc_state, settings, policy.config)
         actor = policy_actor(policy)
+    # torch's RAdam step computed over all parameters at once (bit-identical)
+    flat_radam = FlatRAdam(optimizer)
     # the controller inputs of every row, normalised once: a batch is a row gather
     inputs, attention_inputs = policy.controller_inputs(train)
     target = train["action"]
@@ -242,7 +245,7 @@ def train_bc(
                 order = torch.randperm(n, generator=generator)
                 train_loss = _gradient_epoch(
                     policy,
-                    optimizer,
+                    flat_radam,
                     inputs,
                     attention_inputs,
                     target,
@@ -260,16 +263,18 @@ def train_bc(
                 if score < best:
                     save_actor(layout.best_actor, policy)
                 best = min(best, score)
+                flat_radam.store()
                 _save_run(layout.bc_state, policy, optimizer, history, best, settings)
             bar.set_postfix({k: f"{v:.4g}" for k, v in row.items() if k != "epoch"})
     bar.close()
+    flat_radam.store()
     policy.eval()
     return actor, history
 
 
 def _gradient_epoch(
     policy: SensorPolicy,
-    optimizer: torch.optim.Optimizer,
+    optimizer: FlatRAdam,
     inputs: torch.Tensor,
     attention_inputs: torch.Tensor | None,
     target: torch.Tensor,
@@ -291,10 +296,11 @@ def _gradient_epoch(
         rows = order[start : start + batch_size]
         if feed is not None:
             feed.next_step()
-        s_att = None if attention_inputs is None else attention_inputs[rows]
-        predicted = policy.controller(inputs[rows], s_att).action
+        # index_select: the same rows as inputs[rows], without advanced indexing's overhead
+        s_att = None if attention_inputs is None else attention_inputs.index_select(0, rows)
+        predicted = policy.controller(inputs.index_select(0, rows), s_att).action
         # BCLoss's "mse": the element-wise squared error, then its mean
-        loss = F.mse_loss(predicted, target[rows], reduction="none").mean()
+        loss = F.mse_loss(predicted, target.index_select(0, rows), reduction="none").mean()
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
