@@ -10,6 +10,10 @@ lr 1e-3, MSE, on the same synthetic data, in one run:
   per step).
 
 - ``train_bc, packed masks``: ``train_bc`` with ``dropout_masks="packed"``;
+- ``train_bc, packed masks drawn ahead``: ``draw_packed_ahead=True`` (the same run as
+  packed masks drawn in the step);
+- ``train_bc as of e32a7b4``: ``train_bc``'s step before ``FlatRAdam`` (torch's RAdam
+  step, advanced-index gathers), with torch's masks drawn in the step or ahead;
 - ``train_bc, masks drawn ahead``: ``train_bc`` with ``draw_ahead=True`` (torch's masks
   drawn on a second thread, bit-identical).
 
@@ -26,6 +30,10 @@ the same run, torch's masks). ``--pass-sizes`` adds packed rows with other pass 
 draw instead (``torch.profiler``, the top entries by self CPU time); ``--masks-check K``
 trains K seeds with each mask draw on the synthetic data (validation on a second draw of
 it) and compares the validation losses per epoch (the two draws' distributions).
+
+``--compile-check N`` trains N steps with ``torch.compile`` of the forward pass and loss
+(inductor, CPU: needs a C++ compiler at run time) and eagerly, in the same process, and
+reports the compile time, the step times and how far the results move.
 
 ``--paper`` measures the paper's schedule end to end instead: ``train_bc`` and the
 ``BCLoss`` loop for ``--epochs`` epochs each on a synthetic D_I-size dataset (709,368
@@ -45,6 +53,7 @@ from __future__ import annotations
 import argparse
 import os
 import resource
+import shutil
 import time
 from contextlib import nullcontext
 
@@ -210,6 +219,9 @@ def throughput(args: argparse.Namespace) -> None:
         "pilerl train_bc, masks drawn ahead": lambda: train_bc(
             fresh_actor(), data, None, settings, progress=False, draw_ahead=True
         ),
+        "pilerl train_bc, packed masks drawn ahead": lambda: train_bc(
+            fresh_actor(), data, None, packed, progress=False, draw_packed_ahead=True
+        ),
     }
     config = fresh_actor().module.config
 
@@ -259,6 +271,11 @@ def throughput(args: argparse.Namespace) -> None:
         "\nvs plain loop / vs before: speed ratio (> 1 = faster); one-seed units: wall time "
         "over one train_bc run (for an ensemble: what its seeds cost together)"
     )
+    for now, before in (
+        ("pilerl train_bc", "train_bc as of e32a7b4 (torch's RAdam step)"),
+        ("pilerl train_bc, masks drawn ahead", "train_bc as of e32a7b4, masks drawn ahead"),
+    ):
+        print(f"{now} vs {before}: {ratio(before, now):.2f}x (median of the rounds' ratios)")
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak resident memory of this run: {peak_mb:,.0f} MB")
 
@@ -269,13 +286,16 @@ def paper_schedule(args: argparse.Namespace) -> None:
     warm_up = dataset(2 * BATCH)
     train_bc(fresh_actor(), warm_up, None, BCSettings(epochs=1), progress=False)
     before, before_epochs, before_wall = None, [], float("nan")
+    packed = args.dropout_masks == "packed"
+    # e32a7b4 drew torch's masks ahead only: its packed masks are drawn in the step
+    previous_ahead = args.draw_ahead and not packed
     if not args.train_bc_only:
         say = lambda line: print(line, flush=True)  # noqa: E731
         if args.baseline == "previous":
 
             def baseline(actor, data, settings, times, say=None):
                 return previous_train_bc(
-                    actor, data, settings, times, draw_ahead=args.draw_ahead, say=say
+                    actor, data, settings, times, draw_ahead=previous_ahead, say=say
                 )
         else:
             baseline = bcloss_loop
@@ -300,7 +320,7 @@ def paper_schedule(args: argparse.Namespace) -> None:
     start = time.perf_counter()
     after, _ = train_bc(
         fresh_actor(), data, None, settings, logger=clock, progress=False,
-        draw_ahead=args.draw_ahead,
+        draw_ahead=args.draw_ahead and not packed, draw_packed_ahead=args.draw_ahead and packed,
     )  # fmt: skip
     after_wall = time.perf_counter() - start
     after_epochs = list(np.diff(clock.marks))
@@ -320,7 +340,7 @@ def paper_schedule(args: argparse.Namespace) -> None:
     ahead = ", drawn ahead" if args.draw_ahead else ""
     rows = [(f"pilerl train_bc ({args.dropout_masks} masks{ahead})", after_epochs, after_wall)]
     if before is not None:
-        name = BASELINES[args.baseline] + (ahead if args.baseline == "previous" else "")
+        name = BASELINES[args.baseline] + (ahead if previous_ahead else "")
         rows.insert(0, (name, before_epochs, before_wall))
     for name, epochs, wall in rows:
         listed = f"{np.median(epochs):.1f} ({min(epochs):.1f}-{max(epochs):.1f})"
@@ -396,6 +416,72 @@ def masks_check(args: argparse.Namespace) -> None:
     print("\n(Welch's t: |t| < 2 is what two samples of one distribution give 95% of the time)")
 
 
+def compile_check(args: argparse.Namespace) -> None:
+    """``torch.compile`` (inductor, CPU) of the controller's forward and MSE, the backward
+    through AOTAutograd, with torch's masks drawn ahead and handed in: compile time, the
+    time of a step against eager in the same process, and how far the losses and weights
+    of ``--compile-check`` steps move from eager's (another code generator: other bits)."""
+    compiler = os.environ.get("CXX") or shutil.which("g++") or shutil.which("c++")
+    if compiler is None or shutil.which(compiler) is None:
+        raise SystemExit(
+            "--compile-check: torch.compile's CPU backend (inductor) compiles C++ at run time "
+            "and no C++ compiler was found (set CXX or install g++)"
+        )
+    steps = args.compile_check
+    data = dataset(BATCH * steps + 248)  # and a short last batch, as an epoch of D_I has
+
+    def run(compiled: bool):
+        policy = fresh_actor().module
+        torch.manual_seed(0)
+        optimizer = torch.optim.RAdam(policy.parameters(), lr=1e-3)
+        inputs, attention_inputs = policy.controller_inputs(data.select(*policy.in_keys))
+        target, controller = data["action"], policy.controller
+
+        def loss_of(s, s_att, y):
+            return F.mse_loss(controller(s, s_att).action, y, reduction="none").mean()
+
+        loss_fn = torch.compile(loss_of, dynamic=False) if compiled else loss_of
+        order = torch.randperm(len(inputs), generator=torch.Generator().manual_seed(0))
+        starts = list(range(0, len(order), BATCH))
+        losses, times = [], []
+        policy.train()
+        with masks_ahead(controller, lambda: controller(inputs[:1], attention_inputs[:1])) as feed:
+            feed.start_epoch([len(order[i : i + BATCH]) for i in starts])
+            for i in starts:
+                start = time.perf_counter()
+                rows = order[i : i + BATCH]
+                feed.next_step()
+                loss = loss_fn(inputs[rows], attention_inputs[rows], target[rows])
+                optimizer.zero_grad()
+                loss.backward()
+                optimizer.step()
+                losses.append(float(loss.detach()))
+                times.append(time.perf_counter() - start)
+            feed.end_epoch()
+        return losses, policy.state_dict(), times
+
+    compiled_losses, compiled_weights, compiled_times = run(True)
+    losses, weights, times = run(False)
+    loss_error = max(abs(a - b) / abs(a) for a, b in zip(losses, compiled_losses, strict=True))
+    weight_error = max(float((weights[k] - compiled_weights[k]).abs().max()) for k in weights)
+    same = all(torch.equal(weights[k], compiled_weights[k]) for k in weights)
+    print(
+        f"DANNet, batch {BATCH}, {steps} steps and a last batch of 248 rows, torch's masks drawn "
+        f"ahead, 1 thread; torch.compile(dynamic=False) of forward + MSE (backward by "
+        f"AOTAutograd), C++ compiler {compiler}\n"
+    )
+    print("| path | first step s (compiles) | last batch's first step s | step ms (median) |")
+    print("|---|---:|---:|---:|")
+    for name, t in (("eager", times), ("torch.compile", compiled_times)):
+        print(f"| {name} | {t[0]:.2f} | {t[-1]:.2f} | {1e3 * np.median(t[1:-1]):.2f} |")
+    ratio = np.median(compiled_times[1:-1]) / np.median(times[1:-1])
+    print(
+        f"\nstep time compiled / eager: {ratio:.2f}"
+        f"; bit-identical weights: {same}; largest relative loss difference "
+        f"{loss_error:.1e}, largest weight difference {weight_error:.1e} after {steps + 1} steps"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=51_200)
@@ -416,7 +502,9 @@ def main() -> None:
         help="with --paper: train_bc's dropout masks",
     )
     parser.add_argument(
-        "--draw-ahead", action="store_true", help="with --paper: train_bc(draw_ahead=True)"
+        "--draw-ahead",
+        action="store_true",
+        help="with --paper: train_bc(draw_ahead=True), with packed masks draw_packed_ahead",
     )
     parser.add_argument(
         "--baseline",
@@ -432,9 +520,14 @@ def main() -> None:
     parser.add_argument("--profile-steps", type=int, default=10)
     parser.add_argument("--profile-rows", type=int, default=15)
     parser.add_argument("--masks-check", type=int, default=0, help="seeds per mask draw")
+    parser.add_argument(
+        "--compile-check", type=int, default=0, help="steps of torch.compile against eager"
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    if args.profile:
+    if args.compile_check:
+        compile_check(args)
+    elif args.profile:
         profile_ensemble(args)
     elif args.masks_check:
         masks_check(args)
