@@ -119,8 +119,10 @@ class FlatRAdam:
         torch._foreach_add_(self.params, self._update_views, alpha=-1.0)
 
     def zero_grad(self) -> None:
-        """The torch optimiser's ``zero_grad()`` (gradients set to ``None``)."""
-        self.optimizer.zero_grad()
+        """The gradients set to ``None``, as the torch optimiser's ``zero_grad()`` does by
+        default (without its hooks and profiler record: ~20 us a step less)."""
+        for p in self.params:
+            p.grad = None
 
     def store(self) -> None:
         """Write the moments and step counts into the torch optimiser's state (nothing
