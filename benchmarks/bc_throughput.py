@@ -10,6 +10,10 @@ lr 1e-3, MSE, on the same synthetic data, in one run:
   per step).
 
 - ``train_bc, packed masks``: ``train_bc`` with ``dropout_masks="packed"``;
+- ``train_bc, packed masks drawn ahead``: ``draw_packed_ahead=True`` (the same run as
+  packed masks drawn in the step);
+- ``train_bc as of e32a7b4``: ``train_bc``'s step before ``FlatRAdam`` (torch's RAdam
+  step, advanced-index gathers), with torch's masks drawn in the step or ahead;
 - ``train_bc, masks drawn ahead``: ``train_bc`` with ``draw_ahead=True`` (torch's masks
   drawn on a second thread, bit-identical).
 
@@ -26,6 +30,10 @@ the same run, torch's masks). ``--pass-sizes`` adds packed rows with other pass 
 draw instead (``torch.profiler``, the top entries by self CPU time); ``--masks-check K``
 trains K seeds with each mask draw on the synthetic data (validation on a second draw of
 it) and compares the validation losses per epoch (the two draws' distributions).
+
+``--compile-check N`` trains N steps with ``torch.compile`` of the forward pass and loss
+(inductor, CPU: needs a C++ compiler at run time) and eagerly, in the same process, and
+reports the compile time, the step times and how far the results move.
 
 ``--paper`` measures the paper's schedule end to end instead: ``train_bc`` and the
 ``BCLoss`` loop for ``--epochs`` epochs each on a synthetic D_I-size dataset (709,368
@@ -45,17 +53,22 @@ from __future__ import annotations
 import argparse
 import os
 import resource
+import shutil
 import time
+from contextlib import nullcontext
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
+import torch.nn.functional as F  # noqa: E402
 from tensordict import TensorDict  # noqa: E402
 from torchrl.objectives import BCLoss  # noqa: E402
 
 from pilerl.policies import make_actor  # noqa: E402
 from pilerl.training import BCSettings, train_bc, train_bc_ensemble  # noqa: E402
+from pilerl.training.draw_ahead import masks_ahead  # noqa: E402
+from pilerl.training.dropout_masks import dropout_masks  # noqa: E402
 from pilerl.training.ensemble import MEMBERS_PER_PASS  # noqa: E402
 
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
@@ -66,6 +79,10 @@ STATS = {
     "n_samples": 1,
 }
 PAPER_SAMPLES, PAPER_EPOCHS = 709_368, 150
+BASELINES = {  # --paper's "before" loop
+    "bcloss": "BCLoss on tensordicts (before)",
+    "previous": "train_bc as of e32a7b4 (torch's RAdam step)",
+}
 BATCH = 512
 
 
@@ -110,6 +127,52 @@ def bcloss_loop(
     return actor
 
 
+def previous_train_bc(
+    actor, data: TensorDict, settings: BCSettings, epoch_times: list[float], *, draw_ahead=False,
+    say=None,
+):  # fmt: skip
+    """``train_bc``'s gradient loop as of e32a7b4 (before ``FlatRAdam`` and ``index_select``):
+    torch's RAdam step, one parameter after another, and advanced-index row gathers; with
+    ``draw_ahead``, torch's masks drawn ahead as ``train_bc`` draws them."""
+    policy = actor.module
+    torch.manual_seed(settings.seed)
+    data = data.select(*policy.in_keys, "action")
+    optimizer = torch.optim.RAdam(policy.parameters(), lr=settings.learning_rate)
+    inputs, attention_inputs = policy.controller_inputs(data)
+    target, n = data["action"], data.batch_size[0]
+    controller = policy.controller
+    ahead = (
+        masks_ahead(controller, lambda: controller(inputs[:1], attention_inputs[:1]))
+        if draw_ahead
+        else nullcontext(None)
+    )
+    with dropout_masks(policy, settings.dropout_masks or "bernoulli"), ahead as feed:
+        for epoch in range(settings.epochs):
+            start = time.perf_counter()
+            policy.train()
+            generator = torch.Generator().manual_seed(settings.seed * 1_000_003 + epoch)
+            order = torch.randperm(n, generator=generator)
+            starts = range(0, n, settings.batch_size)
+            if feed is not None:
+                feed.start_epoch([len(order[i : i + settings.batch_size]) for i in starts])
+            for i in starts:
+                rows = order[i : i + settings.batch_size]
+                if feed is not None:
+                    feed.next_step()
+                predicted = controller(inputs[rows], attention_inputs[rows]).action
+                loss = F.mse_loss(predicted, target[rows], reduction="none").mean()
+                optimizer.zero_grad()
+                loss.backward()
+                optimizer.step()
+                float(loss.detach())
+            if feed is not None:
+                feed.end_epoch()
+            epoch_times.append(time.perf_counter() - start)
+            if say is not None:
+                say(f"previous train_bc: epoch {epoch + 1} took {epoch_times[-1]:.1f} s")
+    return actor
+
+
 def plain_loop(data: TensorDict, epochs: int) -> None:
     """The same training written directly against the modules."""
     policy = fresh_actor().module
@@ -143,12 +206,21 @@ def throughput(args: argparse.Namespace) -> None:
     paths = {
         "BCLoss on tensordicts (before)": lambda: bcloss_loop(fresh_actor(), data, settings, []),
         "plain PyTorch loop": lambda: plain_loop(data, args.epochs),
+        "train_bc as of e32a7b4 (torch's RAdam step)": lambda: previous_train_bc(
+            fresh_actor(), data, settings, []
+        ),
+        "train_bc as of e32a7b4, masks drawn ahead": lambda: previous_train_bc(
+            fresh_actor(), data, settings, [], draw_ahead=True
+        ),
         "pilerl train_bc": lambda: train_bc(fresh_actor(), data, None, settings, progress=False),
         "pilerl train_bc, packed masks": lambda: train_bc(
             fresh_actor(), data, None, packed, progress=False
         ),
         "pilerl train_bc, masks drawn ahead": lambda: train_bc(
             fresh_actor(), data, None, settings, progress=False, draw_ahead=True
+        ),
+        "pilerl train_bc, packed masks drawn ahead": lambda: train_bc(
+            fresh_actor(), data, None, packed, progress=False, draw_packed_ahead=True
         ),
     }
     config = fresh_actor().module.config
@@ -199,6 +271,11 @@ def throughput(args: argparse.Namespace) -> None:
         "\nvs plain loop / vs before: speed ratio (> 1 = faster); one-seed units: wall time "
         "over one train_bc run (for an ensemble: what its seeds cost together)"
     )
+    for now, before in (
+        ("pilerl train_bc", "train_bc as of e32a7b4 (torch's RAdam step)"),
+        ("pilerl train_bc, masks drawn ahead", "train_bc as of e32a7b4, masks drawn ahead"),
+    ):
+        print(f"{now} vs {before}: {ratio(before, now):.2f}x (median of the rounds' ratios)")
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak resident memory of this run: {peak_mb:,.0f} MB")
 
@@ -209,12 +286,22 @@ def paper_schedule(args: argparse.Namespace) -> None:
     warm_up = dataset(2 * BATCH)
     train_bc(fresh_actor(), warm_up, None, BCSettings(epochs=1), progress=False)
     before, before_epochs, before_wall = None, [], float("nan")
+    packed = args.dropout_masks == "packed"
+    # e32a7b4 drew torch's masks ahead only: its packed masks are drawn in the step
+    previous_ahead = args.draw_ahead and not packed
     if not args.train_bc_only:
-        bcloss_loop(fresh_actor(), warm_up, BCSettings(epochs=1), [])
+        say = lambda line: print(line, flush=True)  # noqa: E731
+        if args.baseline == "previous":
+
+            def baseline(actor, data, settings, times, say=None):
+                return previous_train_bc(
+                    actor, data, settings, times, draw_ahead=previous_ahead, say=say
+                )
+        else:
+            baseline = bcloss_loop
+        baseline(fresh_actor(), warm_up, BCSettings(epochs=1), [])
         start = time.perf_counter()
-        before = bcloss_loop(
-            fresh_actor(), data, settings, before_epochs, say=lambda line: print(line, flush=True)
-        )
+        before = baseline(fresh_actor(), data, settings, before_epochs, say=say)
         before_wall = time.perf_counter() - start
 
     class EpochClock:
@@ -233,7 +320,7 @@ def paper_schedule(args: argparse.Namespace) -> None:
     start = time.perf_counter()
     after, _ = train_bc(
         fresh_actor(), data, None, settings, logger=clock, progress=False,
-        draw_ahead=args.draw_ahead,
+        draw_ahead=args.draw_ahead and not packed, draw_packed_ahead=args.draw_ahead and packed,
     )  # fmt: skip
     after_wall = time.perf_counter() - start
     after_epochs = list(np.diff(clock.marks))
@@ -253,7 +340,8 @@ def paper_schedule(args: argparse.Namespace) -> None:
     ahead = ", drawn ahead" if args.draw_ahead else ""
     rows = [(f"pilerl train_bc ({args.dropout_masks} masks{ahead})", after_epochs, after_wall)]
     if before is not None:
-        rows.insert(0, ("BCLoss on tensordicts (before)", before_epochs, before_wall))
+        name = BASELINES[args.baseline] + (ahead if previous_ahead else "")
+        rows.insert(0, (name, before_epochs, before_wall))
     for name, epochs, wall in rows:
         listed = f"{np.median(epochs):.1f} ({min(epochs):.1f}-{max(epochs):.1f})"
         if len(epochs) == PAPER_EPOCHS:
@@ -265,7 +353,8 @@ def paper_schedule(args: argparse.Namespace) -> None:
         return
     per_epoch = [b / a for a, b in zip(after_epochs, before_epochs, strict=True)]
     print(
-        f"\nper-epoch speed-up of train_bc over the BCLoss loop (median over epochs): "
+        f"\nper-epoch speed-up of train_bc over the {BASELINES[args.baseline]} (median over "
+        f"epochs): "
         f"{np.median(per_epoch):.2f}x; final weights bit-identical: {same}"
     )
 
@@ -327,6 +416,72 @@ def masks_check(args: argparse.Namespace) -> None:
     print("\n(Welch's t: |t| < 2 is what two samples of one distribution give 95% of the time)")
 
 
+def compile_check(args: argparse.Namespace) -> None:
+    """``torch.compile`` (inductor, CPU) of the controller's forward and MSE, the backward
+    through AOTAutograd, with torch's masks drawn ahead and handed in: compile time, the
+    time of a step against eager in the same process, and how far the losses and weights
+    of ``--compile-check`` steps move from eager's (another code generator: other bits)."""
+    compiler = os.environ.get("CXX") or shutil.which("g++") or shutil.which("c++")
+    if compiler is None or shutil.which(compiler) is None:
+        raise SystemExit(
+            "--compile-check: torch.compile's CPU backend (inductor) compiles C++ at run time "
+            "and no C++ compiler was found (set CXX or install g++)"
+        )
+    steps = args.compile_check
+    data = dataset(BATCH * steps + 248)  # and a short last batch, as an epoch of D_I has
+
+    def run(compiled: bool):
+        policy = fresh_actor().module
+        torch.manual_seed(0)
+        optimizer = torch.optim.RAdam(policy.parameters(), lr=1e-3)
+        inputs, attention_inputs = policy.controller_inputs(data.select(*policy.in_keys))
+        target, controller = data["action"], policy.controller
+
+        def loss_of(s, s_att, y):
+            return F.mse_loss(controller(s, s_att).action, y, reduction="none").mean()
+
+        loss_fn = torch.compile(loss_of, dynamic=False) if compiled else loss_of
+        order = torch.randperm(len(inputs), generator=torch.Generator().manual_seed(0))
+        starts = list(range(0, len(order), BATCH))
+        losses, times = [], []
+        policy.train()
+        with masks_ahead(controller, lambda: controller(inputs[:1], attention_inputs[:1])) as feed:
+            feed.start_epoch([len(order[i : i + BATCH]) for i in starts])
+            for i in starts:
+                start = time.perf_counter()
+                rows = order[i : i + BATCH]
+                feed.next_step()
+                loss = loss_fn(inputs[rows], attention_inputs[rows], target[rows])
+                optimizer.zero_grad()
+                loss.backward()
+                optimizer.step()
+                losses.append(float(loss.detach()))
+                times.append(time.perf_counter() - start)
+            feed.end_epoch()
+        return losses, policy.state_dict(), times
+
+    compiled_losses, compiled_weights, compiled_times = run(True)
+    losses, weights, times = run(False)
+    loss_error = max(abs(a - b) / abs(a) for a, b in zip(losses, compiled_losses, strict=True))
+    weight_error = max(float((weights[k] - compiled_weights[k]).abs().max()) for k in weights)
+    same = all(torch.equal(weights[k], compiled_weights[k]) for k in weights)
+    print(
+        f"DANNet, batch {BATCH}, {steps} steps and a last batch of 248 rows, torch's masks drawn "
+        f"ahead, 1 thread; torch.compile(dynamic=False) of forward + MSE (backward by "
+        f"AOTAutograd), C++ compiler {compiler}\n"
+    )
+    print("| path | first step s (compiles) | last batch's first step s | step ms (median) |")
+    print("|---|---:|---:|---:|")
+    for name, t in (("eager", times), ("torch.compile", compiled_times)):
+        print(f"| {name} | {t[0]:.2f} | {t[-1]:.2f} | {1e3 * np.median(t[1:-1]):.2f} |")
+    ratio = np.median(compiled_times[1:-1]) / np.median(times[1:-1])
+    print(
+        f"\nstep time compiled / eager: {ratio:.2f}"
+        f"; bit-identical weights: {same}; largest relative loss difference "
+        f"{loss_error:.1e}, largest weight difference {weight_error:.1e} after {steps + 1} steps"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=51_200)
@@ -347,7 +502,16 @@ def main() -> None:
         help="with --paper: train_bc's dropout masks",
     )
     parser.add_argument(
-        "--draw-ahead", action="store_true", help="with --paper: train_bc(draw_ahead=True)"
+        "--draw-ahead",
+        action="store_true",
+        help="with --paper: train_bc(draw_ahead=True), with packed masks draw_packed_ahead",
+    )
+    parser.add_argument(
+        "--baseline",
+        choices=sorted(BASELINES),
+        default="bcloss",
+        help="with --paper: the loop train_bc is compared with (previous: train_bc's step as "
+        "of e32a7b4, torch's RAdam, with --draw-ahead and --dropout-masks as train_bc's)",
     )
     parser.add_argument(
         "--pass-sizes", type=int, nargs="*", default=[], help="more ensemble pass sizes"
@@ -356,9 +520,14 @@ def main() -> None:
     parser.add_argument("--profile-steps", type=int, default=10)
     parser.add_argument("--profile-rows", type=int, default=15)
     parser.add_argument("--masks-check", type=int, default=0, help="seeds per mask draw")
+    parser.add_argument(
+        "--compile-check", type=int, default=0, help="steps of torch.compile against eager"
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    if args.profile:
+    if args.compile_check:
+        compile_check(args)
+    elif args.profile:
         profile_ensemble(args)
     elif args.masks_check:
         masks_check(args)

@@ -55,6 +55,7 @@ NOT_RESULTS = (
     "logger.*",
     "*.progress",
     "draw_ahead",  # train_bc: torch's dropout masks drawn on a second thread, bit-identical
+    "draw_packed_ahead",  # train_bc: packed masks drawn on a second thread, bit-identical
 )  # collection workers and envs per worker change what RL collects: they stay in
 PACKAGES = ("pilerl", "torch", "torchrl", "tensordict", "mujoco", "gymnasium", "hydra-core")
 HASH_CHUNK_BYTES = 1 << 20

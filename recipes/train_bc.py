@@ -5,6 +5,7 @@
     python recipes/train_bc.py policy=rf evaluation.episodes=10   # + closed-loop test
     python recipes/train_bc.py dropout_masks=packed    # cheaper dropout draws, other weights
     python recipes/train_bc.py draw_ahead=true         # torch's draws on a 2nd core, same weights
+    python recipes/train_bc.py dropout_masks=packed draw_packed_ahead=true   # both
 
 Writes to the run directory: ``best.pt`` (actor with the lowest validation loss),
 ``last.pt`` (resumable training state), ``losses.png``, the TorchRL CSV log and
@@ -84,12 +85,12 @@ def main(config: TrainBCConfig, run: Run) -> dict[str, float]:
 
     # --- this run directory: skip when finished, refuse another config or dataset
     begin_bc_run(run, config, train_store)
-    ahead = config.draw_ahead  # torch's dropout masks drawn on a second thread
+    ahead = {"draw_ahead": config.draw_ahead, "draw_packed_ahead": config.draw_packed_ahead}
     if config.ensemble_seeds > 1:  # many seeds at once: curves, not a deployable model
         seeds = range(config.seed, config.seed + config.ensemble_seeds)
         title = f"{policy.name}, {len(seeds)} seeds"
         return clone_ensemble(
-            actor, seeds, train, validation, settings, run.dir, title=title, draw_ahead=ahead
+            actor, seeds, train, validation, settings, run.dir, title=title, **ahead
         )
 
     # --- one model, then the trained controller in closed loop
@@ -102,7 +103,7 @@ def main(config: TrainBCConfig, run: Run) -> dict[str, float]:
         run.dir,
         logger_backend=config.logger.backend,
         title=title,
-        draw_ahead=ahead,
+        **ahead,  # the dropout masks drawn on a second thread (the same weights)
     )
     log.info("%s: %s", run.dir, metrics)
     if config.evaluation.episodes > 0:

@@ -23,7 +23,9 @@ pays for the model and RAdam, not for TensorDict indexing or TorchRL's ``BCLoss`
 wrapper. It computes exactly what ``BCLoss(actor, loss_function="mse")`` on the indexed
 tensordict computed (the same element-wise normalisation, forward, dropout draws and
 mean), so a fixed seed gives bit-identical losses and weights (pinned by
-``tests/training/test_training.py::test_gradient_step_matches_the_bcloss_path``).
+``tests/training/test_training.py::test_gradient_step_matches_the_bcloss_path``). RAdam's
+step runs over all parameters at once (``pilerl.training.flat_radam.FlatRAdam``: torch's
+operations in torch's order, one kernel each instead of one per parameter), bit for bit.
 """
 
 from __future__ import annotations
@@ -31,7 +33,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-from contextlib import nullcontext
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -58,6 +59,7 @@ from pilerl.policies.registry import get_spec
 
 from .draw_ahead import MasksAhead, masks_ahead
 from .dropout_masks import check_dropout_masks, dropout_masks
+from .flat_radam import FlatRAdam
 
 log = logging.getLogger(__name__)
 TRAINERS = ("gradient", "levenberg_marquardt", "fit")
@@ -151,6 +153,7 @@ def train_bc(
     logger=None,
     progress: bool = True,
     draw_ahead: bool = False,
+    draw_packed_ahead: bool = False,
 ) -> tuple[TensorDictModule, list[dict]]:
     """Fit ``actor`` to ``train``; returns (the trained actor, one history row per epoch).
 
@@ -170,6 +173,8 @@ def train_bc(
             option changes where masks are drawn, never what is computed, so an error
             would stop a sweep over controllers (NNet trains with Levenberg-Marquardt by
             default) for a setting that cannot change its results.
+        draw_packed_ahead: the same for ``packed`` masks (``settings.dropout_masks`` must
+            be ``packed``): bit-identical to packed masks drawn in the step.
     """
     policy = actor_policy(actor)
     trainer = settings.trainer or get_spec(policy.config.controller).trainer
@@ -178,7 +183,7 @@ def train_bc(
             raise ValueError(
                 f"trainer 'fit' is for the random forest, not {policy.config.controller!r}"
             )
-        if draw_ahead:
+        if draw_ahead or draw_packed_ahead:
             _draw_ahead_unused("the random forest is fitted, it has no dropout")
         return _fit_forest(actor, train, validation, run_dir=run_dir, logger=logger)
     torch.manual_seed(settings.seed)
@@ -192,6 +197,8 @@ def train_bc(
     if layout is not None and layout.bc_state.exists():
         policy, optimizer, history, best = _resume(layout.bc_state, settings, policy.config)
         actor = policy_actor(policy)
+    # torch's RAdam step computed over all parameters at once (bit-identical)
+    flat_radam = FlatRAdam(optimizer)
     # the controller inputs of every row, normalised once: a batch is a row gather
     inputs, attention_inputs = policy.controller_inputs(train)
     target = train["action"]
@@ -207,19 +214,29 @@ def train_bc(
     )
     masks = settings.dropout_masks or DEFAULT_DROPOUT_MASKS
     if draw_ahead and masks != "bernoulli":
-        raise ValueError(f"train_bc: draw_ahead draws torch's bernoulli masks, not {masks!r}")
+        raise ValueError(
+            f"train_bc: draw_ahead draws torch's bernoulli masks, not {masks!r} (packed masks "
+            "are drawn ahead with draw_packed_ahead=True)"
+        )
+    if draw_packed_ahead and masks != "packed":
+        raise ValueError(
+            f"train_bc: draw_packed_ahead draws packed masks, not {masks!r} (set "
+            "BCSettings.dropout_masks='packed', or draw torch's masks ahead with draw_ahead)"
+        )
+    ahead = draw_ahead or draw_packed_ahead
 
     def one_row() -> object:
         s_att = None if attention_inputs is None else attention_inputs[:1]
         return policy.controller(inputs[:1], s_att)
 
-    ahead = (
-        masks_ahead(policy.controller, one_row)
-        if draw_ahead and trainer == "gradient"
-        else nullcontext(None)
+    # masks drawn ahead replace the dropout layers; otherwise they draw in the step
+    drawn_masks = (
+        masks_ahead(policy.controller, one_row, masks)
+        if ahead and trainer == "gradient"
+        else dropout_masks(policy, masks)
     )
-    with dropout_masks(policy, masks), ahead as feed:
-        if draw_ahead and feed is None:
+    with drawn_masks as feed:
+        if ahead and feed is None:
             _draw_ahead_unused(
                 f"the {trainer} trainer's steps are not drawn ahead"
                 if trainer != "gradient"
@@ -242,7 +259,7 @@ def train_bc(
                 order = torch.randperm(n, generator=generator)
                 train_loss = _gradient_epoch(
                     policy,
-                    optimizer,
+                    flat_radam,
                     inputs,
                     attention_inputs,
                     target,
@@ -260,16 +277,18 @@ def train_bc(
                 if score < best:
                     save_actor(layout.best_actor, policy)
                 best = min(best, score)
+                flat_radam.store()
                 _save_run(layout.bc_state, policy, optimizer, history, best, settings)
             bar.set_postfix({k: f"{v:.4g}" for k, v in row.items() if k != "epoch"})
     bar.close()
+    flat_radam.store()
     policy.eval()
     return actor, history
 
 
 def _gradient_epoch(
     policy: SensorPolicy,
-    optimizer: torch.optim.Optimizer,
+    optimizer: FlatRAdam,
     inputs: torch.Tensor,
     attention_inputs: torch.Tensor | None,
     target: torch.Tensor,
@@ -291,10 +310,11 @@ def _gradient_epoch(
         rows = order[start : start + batch_size]
         if feed is not None:
             feed.next_step()
-        s_att = None if attention_inputs is None else attention_inputs[rows]
-        predicted = policy.controller(inputs[rows], s_att).action
+        # index_select: the same rows as inputs[rows], without advanced indexing's overhead
+        s_att = None if attention_inputs is None else attention_inputs.index_select(0, rows)
+        predicted = policy.controller(inputs.index_select(0, rows), s_att).action
         # BCLoss's "mse": the element-wise squared error, then its mean
-        loss = F.mse_loss(predicted, target[rows], reduction="none").mean()
+        loss = F.mse_loss(predicted, target.index_select(0, rows), reduction="none").mean()
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()

@@ -129,12 +129,13 @@ def clone(
     logger_backend: str,
     title: str,
     draw_ahead: bool = False,
+    draw_packed_ahead: bool = False,
 ) -> tuple[TensorDictModule, dict[str, float | int]]:
     """Train ``actor`` into ``run_dir``; returns (the trained actor, the run's metrics:
     epochs, final training loss and, with validation data, the final and best validation
     losses). Besides ``best.pt`` (lowest validation loss) and ``last.pt`` (training
-    state), ``final.pt`` holds the actor after the whole budget. ``draw_ahead``: as
-    ``train_bc``'s."""
+    state), ``final.pt`` holds the actor after the whole budget. ``draw_ahead``,
+    ``draw_packed_ahead``: as ``train_bc``'s."""
     layout = RunLayout(run_dir)
     logger = make_logger(logger_backend, layout.root, experiment_name="bc")
     actor, history = train_bc(
@@ -145,6 +146,7 @@ def clone(
         run_dir=layout.root,
         logger=logger,
         draw_ahead=draw_ahead,
+        draw_packed_ahead=draw_packed_ahead,
     )
     save_actor(layout.final_actor, actor)
     plot_losses(history, layout.losses_plot, title=title)
@@ -166,13 +168,16 @@ def clone_ensemble(
     *,
     title: str,
     draw_ahead: bool = False,
+    draw_packed_ahead: bool = False,
 ) -> dict[str, float | int]:
     """Train ``actor``'s architecture from each of ``seeds`` at once; writes
     ``ensemble.png`` and ``ensemble_curves.csv``; returns the final losses' mean and std.
-    ``draw_ahead`` has no effect here (the ensemble draws every member's masks of a step
-    in one call): as ``train_bc`` where nothing is drawn ahead, a warning says so."""
-    if draw_ahead:
-        log.warning("clone_ensemble: draw_ahead has no effect: the ensemble draws its own masks")
+    ``draw_ahead`` and ``draw_packed_ahead`` have no effect here (the ensemble draws every
+    member's masks of a step in one call): as ``train_bc`` where nothing is drawn ahead,
+    a warning says so."""
+    if draw_ahead or draw_packed_ahead:
+        option = "draw_ahead" if draw_ahead else "draw_packed_ahead"
+        log.warning("clone_ensemble: %s has no effect: the ensemble draws its own masks", option)
     run_dir = Path(run_dir)
     result = train_bc_ensemble(actor.module.config, list(seeds), train, validation, settings)
     plot_ensemble(result.train_loss, result.validation_loss, run_dir / "ensemble.png", title=title)

@@ -15,6 +15,12 @@ bit-identical to drawing in the step (tested, in float32 and float64). It pays o
 a second core is idle: on a loaded machine the worker competes with the step for the same
 cores. Layers with p = 0 are left alone: torch's dropout returns their input and draws
 nothing.
+
+``masks="packed"`` draws ``packed`` masks ahead instead (``pilerl.training.dropout_masks``):
+the same ``packed_keep_masks`` call per layer and step as ``PackedDropout`` makes in the
+step, on the cloned generator, so the run is bit-identical to ``dropout_masks="packed"``
+drawn in the step (tested). The masks are float32 whatever the layer's dtype, as
+``PackedDropout``'s.
 """
 
 from __future__ import annotations
@@ -27,7 +33,13 @@ from contextlib import contextmanager, suppress
 import torch
 from torch import nn
 
-from .dropout_masks import DropoutSite, dropout_layers, restore_dropout
+from .dropout_masks import (
+    DropoutSite,
+    check_dropout_masks,
+    dropout_layers,
+    packed_keep_masks,
+    restore_dropout,
+)
 
 STEPS_AHEAD = 2  # masks of at most this many steps wait in memory
 
@@ -48,12 +60,14 @@ class _Fed(nn.Module):
                 f"MasksAhead: a mask of shape {tuple(mask.shape)} was drawn for dropout "
                 f"layer {self.index}, which got {tuple(x.shape)}"
             )
-        if mask.dtype != x.dtype or mask.device != x.device:
+        packed = self.feed.masks == "packed"  # float32 masks, as PackedDropout's
+        dtype = torch.float32 if packed else x.dtype
+        if mask.dtype != dtype or mask.device != x.device:
             raise RuntimeError(
                 f"MasksAhead: a {mask.dtype} mask on {mask.device} was drawn for dropout "
                 f"layer {self.index}, which got {x.dtype} on {x.device}"
             )
-        if not x.is_contiguous():
+        if not packed and not x.is_contiguous():
             # torch draws into empty_like(x), which keeps x's memory layout: the same
             # generator fills another element order, so drawn-ahead masks would differ
             raise RuntimeError(
@@ -68,8 +82,10 @@ class MasksAhead:
     """The dropout masks of one epoch's steps, drawn ahead from a clone of the global
     generator (see the module docstring). Use through ``masks_ahead``."""
 
-    def __init__(self, layers: Sequence[DropoutSite]) -> None:
+    def __init__(self, layers: Sequence[DropoutSite], masks: str = "bernoulli") -> None:
+        check_dropout_masks(masks, "MasksAhead")
         self.layers = list(layers)
+        self.masks = masks
         self.current: list[torch.Tensor] = []
         self._queue: queue.Queue = queue.Queue(maxsize=STEPS_AHEAD)
         self._stop = threading.Event()
@@ -117,7 +133,10 @@ class MasksAhead:
                 masks = []
                 for p, shape, dtype, device in self.layers:
                     options = {"dtype": dtype, "device": device}  # as empty_like(x)
-                    if p == 1:  # multiplied by zero: no draw
+                    if self.masks == "packed":  # PackedDropout's draw, p = 1 included
+                        drawn = packed_keep_masks([(rows, *shape)], p, generator=self._generator)
+                        masks.append(drawn[0])
+                    elif p == 1:  # multiplied by zero: no draw
                         masks.append(torch.zeros(rows, *shape, **options))
                     else:
                         noise = torch.empty(rows, *shape, **options)
@@ -136,10 +155,14 @@ class MasksAhead:
 
 
 @contextmanager
-def masks_ahead(module: nn.Module, run: Callable[[], object]) -> Iterator[MasksAhead | None]:
-    """Within the block, ``module``'s dropout layers with p > 0 take their masks from the
-    returned ``MasksAhead`` (``None`` when it has no such layer: nothing to draw).
-    ``run()`` is a forward pass of one row, to find the layers, their widths and dtypes."""
+def masks_ahead(
+    module: nn.Module, run: Callable[[], object], masks: str = "bernoulli"
+) -> Iterator[MasksAhead | None]:
+    """Within the block, ``module``'s dropout layers with p > 0 take their masks
+    (``bernoulli``: torch's, ``packed``: ``PackedDropout``'s) from the returned
+    ``MasksAhead`` (``None`` when it has no such layer: nothing to draw). ``run()`` is a
+    forward pass of one row, to find the layers, their widths and dtypes."""
+    check_dropout_masks(masks, "masks_ahead")
     layers = {name: site for name, site in dropout_layers(module, run).items() if site.p > 0}
     elsewhere = {str(site.device) for site in layers.values() if site.device.type != "cpu"}
     if elsewhere:  # torch draws there with another generator (and another kernel)
@@ -150,7 +173,7 @@ def masks_ahead(module: nn.Module, run: Callable[[], object]) -> Iterator[MasksA
     if not layers:
         yield None
         return
-    feed = MasksAhead(list(layers.values()))
+    feed = MasksAhead(list(layers.values()), masks)
     replaced = {name: module.get_submodule(name) for name in layers}
     for i, (name, layer) in enumerate(replaced.items()):  # in the order they are called
         module.set_submodule(name, _Fed(layer.p, feed, i).train(layer.training))

@@ -39,10 +39,13 @@ def check_dropout_masks(name: str | None, where: str) -> None:
 
 
 def packed_keep_masks(
-    shapes: Sequence[Sequence[int]], drop_probability: float
+    shapes: Sequence[Sequence[int]],
+    drop_probability: float,
+    *,
+    generator: torch.Generator | None = None,
 ) -> list[torch.Tensor]:
     """Dropout multipliers of the given shapes (float32: 0 or 1/q, q = 1 - p), drawn with
-    one ``random_`` call on the global generator for all of them."""
+    one ``random_`` call on ``generator`` (``None``: the global one) for all of them."""
     if not 0.0 <= drop_probability <= 1.0:
         raise ValueError(
             f"packed_keep_masks: drop probability must be in [0, 1], got {drop_probability}"
@@ -56,7 +59,7 @@ def packed_keep_masks(
     else:
         words = torch.empty(-(-total // LANES_PER_WORD), dtype=torch.int64)
         # every bit random (random_()'s default int64 range leaves the top bit 0)
-        words.random_(-(2**63), None)
+        words.random_(-(2**63), None, generator=generator)
         lanes = words.view(torch.int16)[:total]  # uniform over [-2**15, 2**15)
         flat = (lanes < kept_values - LANE_VALUES // 2).to(torch.float32)
         if keep_probability > 0:

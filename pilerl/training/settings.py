@@ -52,6 +52,9 @@ class TrainBCConfig:
             (``pilerl.training.draw_ahead``): the same results, faster only where a second
             core is idle. Not with ``dropout_masks: packed``; where nothing is drawn ahead
             (Levenberg-Marquardt, no dropout, the forest, an ensemble) a warning says so.
+        draw_packed_ahead: the same for packed masks (``dropout_masks: packed`` for one
+            model): the results of packed masks drawn in the step, the draws on a second
+            thread.
         env, evaluation: the closed-loop test of the trained controller (the last step;
             ``evaluation.episodes: 0`` skips it), written to ``<run dir>/evaluation``.
     """
@@ -70,6 +73,7 @@ class TrainBCConfig:
     ensemble_seeds: int = 1
     dropout_masks: str | None = None
     draw_ahead: bool = False
+    draw_packed_ahead: bool = False
     env: EnvConfig = field(default_factory=EnvConfig)
     evaluation: ClosedLoopConfig = field(default_factory=lambda: ClosedLoopConfig(episodes=0))
     output_dir: str = MISSING
@@ -99,7 +103,14 @@ class TrainBCConfig:
         if self.draw_ahead and self.dropout_masks == "packed" and self.ensemble_seeds == 1:
             raise ValueError(
                 "draw_ahead: draws torch's bernoulli masks ahead, dropout_masks=packed asks "
-                "for packed ones; set draw_ahead=false or dropout_masks=bernoulli"
+                "for packed ones; set draw_ahead=false or dropout_masks=bernoulli (packed "
+                "masks are drawn ahead with draw_packed_ahead=true)"
+            )
+        if self.draw_packed_ahead and self.dropout_masks != "packed" and self.ensemble_seeds == 1:
+            raise ValueError(
+                f"draw_packed_ahead: draws packed masks ahead, dropout_masks="
+                f"{self.dropout_masks} draws torch's; set dropout_masks=packed (other weights "
+                "than torch's draws) or draw_ahead=true instead (torch's masks ahead)"
             )
         self.evaluation.condition_names(self.env)
         if self.ensemble_seeds > 1 and self.evaluation.episodes > 0:
