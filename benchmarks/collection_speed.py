@@ -8,16 +8,34 @@ Rows (same conditions mixture, same actor, measured in this run):
 
 | row | what |
 |---|---|
-| raw env | ``ConditionMixtureEnv.step`` with a fixed action: the simulator alone |
+| raw env (fixed action) | ``ConditionMixtureEnv.step``, one simulator, action [0.2, 0.1, 0.6] |
 | raw env + actor | the same, the cloned actor choosing each action (no TorchRL) |
-| Collector, 1 env | TorchRL ``Collector`` over ``GymWrapper``, stochastic actor |
+| Collector, 1 env | TorchRL ``Collector`` over ``GymWrapper``, fine-tuning's PPO policy |
 | Collector, E envs | the same over E simulators batched in one ``SimulatorBatchEnv`` |
 | MultiSyncCollector | TorchRL multi-process collector, W workers x E envs each |
+| replay: ... | the simulators a collector row stepped, rebuilt with the same seeds and |
+| | stepped in this process with the actions that collector took (no actor, no |
+| | TorchRL): what the simulators alone cost on those trajectories |
 
-Ratios are against the raw env row. Without ``--checkpoint`` an untrained DANNet with
-unit statistics stands in (same network size). The multi-process row excludes the
-workers' start-up (spawned processes import torch, TorchRL and MuJoCo: seconds), measured
-from the first batch to the last.
+The policy is what PPO fine-tuning collects with: ``PPOLearner.collection_policy``, the
+fused sampler around ``make_stochastic_actor(actor)``
+(``pilerl.policies.collection_policy``); ``--policy probabilistic`` collects with the
+``ProbabilisticActor`` itself (what main collected with; bit-identical batches).
+
+Two ratios. ``x fixed`` is against the first row, the baseline the issue's figures used:
+one simulator driven by a fixed action. It mixes two things: what collection adds, and what
+the simulator costs on other trajectories (the untrained stochastic actor drives the
+machine into states that cost the simulator ~1.4x more per step than the fixed action's,
+measured). ``x replay`` is each collector row against the replay of its own simulators and
+actions, one process, timed over the same frames: only what collection adds (the actor,
+TorchRL) counts. The replay checks that it reproduced the collector's trajectories (equal
+rewards and observations, else it stops with an error). Issue #18's rows 4-5 are read
+against ``x replay`` (docs/performance.md says why); ``x fixed`` is printed beside it.
+
+Without ``--checkpoint`` an untrained DANNet with unit statistics stands in (same network
+size). The collector rows exclude their first batch (start-up; for the multi-process row
+the workers' spawn and imports), measured from the first batch to the last; the replays
+time the same frames.
 
 ``--cpu`` times the one-process rows with this process's CPU time instead of the wall
 clock: on a machine loaded by other jobs the wall clock counts the time the scheduler gave
@@ -28,10 +46,11 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import torch
-from tensordict import TensorDict
+from tensordict import TensorDict, TensorDictBase
 
 from pilerl.policies import load_actor, make_actor, make_stochastic_actor
 from pilerl.rl.collection import make_collector
@@ -42,6 +61,9 @@ CONDITIONS = {"summer": 1.0, "winter_a": 1.0, "winter_b": 1.0, "winter_c": 1.0, 
 REWARDS = {"reward_fill": 1.0, "reward_success": 1.0, "reward_time": 1.0}
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
 ATTENTION = [*SENSORS, "boom_pressure", "bucket_pressure", "pump_angle"]
+FIXED_ACTION = [0.2, 0.1, 0.6]
+CHECKED_SENSOR = "boom_angle"  # the observation the replay compares (besides the reward)
+POLICIES = ("fused", "probabilistic")
 
 
 def cloned_actor(checkpoint: str | None):
@@ -57,7 +79,7 @@ CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 def raw_fps(frames: int, actor=None, *, clock=time.perf_counter) -> float:
     env = ConditionMixtureEnv("pile_loader", {}, CONDITIONS, REWARDS)
     obs, _ = env.reset(seed=0)
-    action = np.array([0.2, 0.1, 0.6], dtype=np.float32)
+    action = np.array(FIXED_ACTION, dtype=np.float32)
     started = clock()
     for _ in range(frames):
         if actor is not None:
@@ -72,35 +94,123 @@ def raw_fps(frames: int, actor=None, *, clock=time.perf_counter) -> float:
     return frames / elapsed
 
 
+@dataclass
+class Collected:
+    """What a collector row's simulators did, [simulator, time], to replay it.
+
+    Simulator ``i`` was built with seed ``i`` (``make_collector``'s seeds with ``seed=0``:
+    worker ``k``'s sub-env ``j`` is ``k * envs + j``). The first ``untimed`` steps of each
+    simulator were the collector's untimed first batch.
+    """
+
+    actions: np.ndarray  # float32 [simulators, T, n_controls]
+    rewards: np.ndarray  # float32 [simulators, T]
+    sensor: np.ndarray  # float32 [simulators, T]: CHECKED_SENSOR after each step
+    done: np.ndarray  # bool [simulators, T]
+    untimed: int
+
+
+def collection_policy(actor, policy: str):
+    """PPO's collection policy around ``actor`` (``fused``) or its ``ProbabilisticActor``."""
+    stochastic = make_stochastic_actor(actor)
+    if policy == "probabilistic":
+        return stochastic
+    # imported here: ``--policy probabilistic`` also runs on versions without it
+    from pilerl.policies.collection_policy import make_collection_policy
+
+    return make_collection_policy(stochastic)
+
+
 def collector_fps(
     frames: int,
     frames_per_batch: int,
     actor,
     *,
     backend: str,
+    policy: str = "fused",
     workers: int = 1,
     envs: int = 1,
     clock=time.perf_counter,
-) -> float:
-    policy = make_stochastic_actor(actor)
+) -> tuple[float, Collected]:
     factory = TrainingEnvFactory("pile_loader", {}, CONDITIONS, REWARDS, num_envs=envs)
     collector = make_collector(
         factory,
-        policy,
+        collection_policy(actor, policy),
         frames_per_batch=frames_per_batch,
         total_frames=frames + frames_per_batch,
         backend=backend,
         workers=workers,
     )
+    batches: list[TensorDictBase] = []
     counted, started = 0, None
     for batch in collector:
+        batches.append(
+            batch.select(
+                "action", ("next", "reward"), ("next", "done"), ("next", CHECKED_SENSOR)
+            ).clone()
+        )
         if started is None:  # the first batch pays for start-up: timing starts after it
             started = clock()
             continue
         counted += batch.numel()
     elapsed = clock() - started
     collector.shutdown()
-    return counted / elapsed
+    return counted / elapsed, collected(batches)
+
+
+def collected(batches: list[TensorDictBase]) -> Collected:
+    """The batches (time last, any leading dims) as [simulator, time] arrays."""
+    time_first = [b.reshape(-1, b.shape[-1]) if b.ndim > 1 else b.unsqueeze(0) for b in batches]
+    data = torch.cat(time_first, dim=1)
+    return Collected(
+        actions=data["action"].numpy(),
+        rewards=data["next", "reward"].reshape(data.shape).numpy(),
+        sensor=data["next", CHECKED_SENSOR].reshape(data.shape).numpy(),
+        done=data["next", "done"].reshape(data.shape).numpy(),
+        untimed=time_first[0].shape[1],
+    )
+
+
+def replay_fps(run: Collected, *, clock=time.perf_counter) -> float:
+    """Step fresh seeded simulators with the collector's actions, in its order (all
+    simulators at each time step); frames/s over the steps the collector timed.
+
+    Raises:
+        RuntimeError: a reward, the checked sensor or an episode end differs from what
+            the collector recorded (then this is not the same work).
+    """
+    n, steps = run.rewards.shape
+    envs = [ConditionMixtureEnv("pile_loader", {}, CONDITIONS, REWARDS, seed=i) for i in range(n)]
+    for env in envs:
+        env.reset()
+    rewards = np.zeros((n, steps), dtype=np.float32)
+    sensor = np.zeros((n, steps), dtype=np.float32)
+    done = np.zeros((n, steps), dtype=bool)
+    started = None
+    for t in range(steps):
+        if t == run.untimed:
+            started = clock()
+        for i, env in enumerate(envs):
+            obs, rewards[i, t], terminated, truncated, _ = env.step(run.actions[i, t])
+            sensor[i, t] = obs[CHECKED_SENSOR][0]
+            done[i, t] = terminated or truncated
+            if done[i, t]:
+                env.reset()
+    elapsed = clock() - started
+    for env in envs:
+        env.close()
+    for name, got, want in (
+        ("reward", rewards, run.rewards),
+        (CHECKED_SENSOR, sensor, run.sensor),
+        ("done", done, run.done),
+    ):
+        if not np.array_equal(got, want):
+            where = np.argwhere(got != want)[0]
+            raise RuntimeError(
+                f"replay: {name} differs from the collector's at simulator {where[0]}, "
+                f"step {where[1]}: not the same trajectories"
+            )
+    return n * (steps - run.untimed) / elapsed
 
 
 def main() -> None:
@@ -110,6 +220,12 @@ def main() -> None:
     parser.add_argument("--frames-per-batch", type=int, default=1024)
     parser.add_argument("--workers", type=int, default=2, help="multi-process collector size")
     parser.add_argument("--envs", type=int, default=8, help="simulators batched per collector")
+    parser.add_argument(
+        "--policy",
+        choices=POLICIES,
+        default="fused",
+        help="the collection policy: PPO's fused sampler or its ProbabilisticActor",
+    )
     parser.add_argument("--cpu", action="store_true", help="one-process rows in CPU time")
     args = parser.parse_args()
     clock = CLOCKS["cpu" if args.cpu else "wall"]
@@ -117,37 +233,43 @@ def main() -> None:
     torch.manual_seed(0)
     actor = cloned_actor(args.checkpoint)
     frames, per_batch = args.frames, args.frames_per_batch
-    rows = [
-        ("raw env (fixed action)", raw_fps(frames, clock=clock)),
-        ("raw env + actor", raw_fps(frames, actor, clock=clock)),
-        (
-            "Collector, 1 env",
-            collector_fps(frames, per_batch, actor, backend="single", clock=clock),
-        ),
-        (
-            f"Collector, {args.envs} envs",
-            collector_fps(frames, per_batch, actor, backend="single", envs=args.envs, clock=clock),
-        ),
+    rows: list[tuple[str, float, float | None]] = [
+        ("raw env (fixed action)", raw_fps(frames, clock=clock), None),
+        ("raw env + actor", raw_fps(frames, actor, clock=clock), None),
+    ]
+    collectors = [
+        ("Collector, 1 env", "single", 1, 1),
+        (f"Collector, {args.envs} envs", "single", 1, args.envs),
     ]
     if not args.cpu:
-        rows.append(
+        collectors.append(
             (
                 f"MultiSyncCollector, {args.workers}x{args.envs}",
-                collector_fps(
-                    frames,
-                    per_batch,
-                    actor,
-                    backend="multiprocess",
-                    workers=args.workers,
-                    envs=args.envs,
-                ),
+                "multiprocess",
+                args.workers,
+                args.envs,
             )
         )
+    for name, backend, workers, envs in collectors:
+        fps, run = collector_fps(
+            frames,
+            per_batch,
+            actor,
+            backend=backend,
+            policy=args.policy,
+            workers=workers,
+            envs=envs,
+            clock=clock,
+        )
+        replay = replay_fps(run, clock=clock)
+        rows.append((f"replay: {workers * envs} simulators", replay, None))
+        rows.append((name, fps, replay))
     baseline = rows[0][1]
     unit = "frames/CPU s" if args.cpu else "frames/s"
-    print(f"{'row':<28} {unit:>12} {'x raw':>7}")
-    for name, fps in rows:
-        print(f"{name:<28} {fps:>12.0f} {fps / baseline:>7.2f}")
+    print(f"{'row':<30} {unit:>12} {'x fixed':>8} {'x replay':>9}")
+    for name, fps, replay in rows:
+        versus_replay = f"{fps / replay:>9.2f}" if replay else f"{'':>9}"
+        print(f"{name:<30} {fps:>12.0f} {fps / baseline:>8.2f} {versus_replay}")
 
 
 if __name__ == "__main__":
