@@ -24,18 +24,19 @@ fused sampler around ``make_stochastic_actor(actor)``
 
 Two ratios. ``x fixed`` is against the first row, the baseline the issue's figures used:
 one simulator driven by a fixed action. It mixes two things: what collection adds, and what
-the simulator costs on other trajectories (the untrained stochastic actor drives the
-machine into states that cost the simulator ~1.4x more per step than the fixed action's,
-measured). ``x replay`` is each collector row against the replay of its own simulators and
-actions, one process, timed over the same frames: only what collection adds (the actor,
-TorchRL) counts. The replay checks that it reproduced the collector's trajectories (equal
-rewards and observations, else it stops with an error). Issue #18's rows 4-5 are read
-against ``x replay`` (docs/performance.md says why); ``x fixed`` is printed beside it.
+the simulator costs on other trajectories (the actor's actions drive the machine into
+other states than the fixed action's, at another cost per step). ``x replay`` is each
+collector row against the replay of its own simulators and actions: only what collection
+adds (the actor, TorchRL, the batched env) counts. The replay checks that it reproduced
+the collector's trajectories (equal rewards, observations and episode ends, else it stops
+with an error). Issue #18's rows 4-5 are read against ``x replay`` (docs/performance.md
+says why); ``x fixed`` is printed beside it.
 
-Without ``--checkpoint`` an untrained DANNet with unit statistics stands in (same network
-size). The collector rows exclude their first batch (start-up; for the multi-process row
-the workers' spawn and imports), measured from the first batch to the last; the replays
-time the same frames.
+The collector and its replay are timed alternately, batch by batch over the same frames
+(a multi-process collector's workers wait while the replay runs), so that a change in the
+machine's load hits both. The first batch (start-up; for the multi-process row the
+workers' spawn and imports) is left out of both. Without ``--checkpoint`` an untrained
+DANNet with unit statistics stands in (same network size).
 
 ``--cpu`` times the one-process rows with this process's CPU time instead of the wall
 clock: on a machine loaded by other jobs the wall clock counts the time the scheduler gave
@@ -46,7 +47,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -94,20 +94,62 @@ def raw_fps(frames: int, actor=None, *, clock=time.perf_counter) -> float:
     return frames / elapsed
 
 
-@dataclass
-class Collected:
-    """What a collector row's simulators did, [simulator, time], to replay it.
+class Replay:
+    """A collector's simulators rebuilt and stepped with the actions it took, in this process.
 
-    Simulator ``i`` was built with seed ``i`` (``make_collector``'s seeds with ``seed=0``:
-    worker ``k``'s sub-env ``j`` is ``k * envs + j``). The first ``untimed`` steps of each
-    simulator were the collector's untimed first batch.
+    Simulator ``i`` is built with seed ``i`` (``make_collector``'s seeds with ``seed=0``:
+    worker ``k``'s sub-env ``j`` is ``k * envs + j``) and reset once, as the collector
+    resets its env once when it is built. ``step`` takes one collected batch and steps
+    every simulator through it, all simulators at each time step (the batched env's
+    order), resetting those whose episode ended.
     """
 
-    actions: np.ndarray  # float32 [simulators, T, n_controls]
-    rewards: np.ndarray  # float32 [simulators, T]
-    sensor: np.ndarray  # float32 [simulators, T]: CHECKED_SENSOR after each step
-    done: np.ndarray  # bool [simulators, T]
-    untimed: int
+    def __init__(self, simulators: int) -> None:
+        self.envs = [
+            ConditionMixtureEnv("pile_loader", {}, CONDITIONS, REWARDS, seed=i)
+            for i in range(simulators)
+        ]
+        for env in self.envs:
+            env.reset()
+
+    def step(self, batch: TensorDictBase) -> None:
+        """Replay ``batch`` (time last, any leading dims: ``[..., T]``).
+
+        Raises:
+            RuntimeError: a reward, the checked sensor or an episode end differs from what
+                the collector recorded (then this is not the same work).
+        """
+        rows = batch.reshape(-1, batch.shape[-1]) if batch.ndim > 1 else batch.unsqueeze(0)
+        if rows.shape[0] != len(self.envs):
+            raise RuntimeError(f"replay: {rows.shape[0]} simulators for {len(self.envs)}")
+        actions = rows["action"].numpy()
+        n, steps = rows.shape
+        rewards = np.zeros((n, steps), dtype=np.float32)
+        sensor = np.zeros((n, steps), dtype=np.float32)
+        done = np.zeros((n, steps), dtype=bool)
+        for t in range(steps):
+            for i, env in enumerate(self.envs):
+                obs, rewards[i, t], terminated, truncated, _ = env.step(actions[i, t])
+                sensor[i, t] = obs[CHECKED_SENSOR][0]
+                done[i, t] = terminated or truncated
+                if done[i, t]:
+                    env.reset()
+        for name, got, want in (
+            ("reward", rewards, rows["next", "reward"]),
+            (CHECKED_SENSOR, sensor, rows["next", CHECKED_SENSOR]),
+            ("done", done, rows["next", "done"]),
+        ):
+            want = want.reshape(n, steps).numpy()
+            if not np.array_equal(got, want):
+                where = np.argwhere(got != want)[0]
+                raise RuntimeError(
+                    f"replay: {name} differs from the collector's at simulator {where[0]}, "
+                    f"step {where[1]} of a batch: not the same trajectories"
+                )
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
 
 
 def collection_policy(actor, policy: str):
@@ -131,7 +173,13 @@ def collector_fps(
     workers: int = 1,
     envs: int = 1,
     clock=time.perf_counter,
-) -> tuple[float, Collected]:
+) -> tuple[float, float]:
+    """(collector, replay) frames/s, batch by batch alternately over the same frames.
+
+    After each batch the collector's simulators are replayed through it (a multi-process
+    collector's workers wait meanwhile: they collect when the next batch is asked for),
+    so both meet the same machine load. The first batch (start-up) is replayed untimed.
+    """
     factory = TrainingEnvFactory("pile_loader", {}, CONDITIONS, REWARDS, num_envs=envs)
     collector = make_collector(
         factory,
@@ -141,76 +189,25 @@ def collector_fps(
         backend=backend,
         workers=workers,
     )
-    batches: list[TensorDictBase] = []
-    counted, started = 0, None
-    for batch in collector:
-        batches.append(
-            batch.select(
-                "action", ("next", "reward"), ("next", "done"), ("next", CHECKED_SENSOR)
-            ).clone()
-        )
-        if started is None:  # the first batch pays for start-up: timing starts after it
-            started = clock()
-            continue
+    replay = Replay(workers * envs)
+    kept = ("action", ("next", "reward"), ("next", "done"), ("next", CHECKED_SENSOR))
+    batches = iter(collector)
+    replay.step(next(batches).select(*kept))  # start-up: untimed
+    counted, collect_s, replay_s = 0, 0.0, 0.0
+    while True:
+        started = clock()
+        batch = next(batches, None)
+        collect_s += clock() - started
+        if batch is None:
+            break
+        batch = batch.select(*kept).clone()
+        started = clock()
+        replay.step(batch)
+        replay_s += clock() - started
         counted += batch.numel()
-    elapsed = clock() - started
     collector.shutdown()
-    return counted / elapsed, collected(batches)
-
-
-def collected(batches: list[TensorDictBase]) -> Collected:
-    """The batches (time last, any leading dims) as [simulator, time] arrays."""
-    time_first = [b.reshape(-1, b.shape[-1]) if b.ndim > 1 else b.unsqueeze(0) for b in batches]
-    data = torch.cat(time_first, dim=1)
-    return Collected(
-        actions=data["action"].numpy(),
-        rewards=data["next", "reward"].reshape(data.shape).numpy(),
-        sensor=data["next", CHECKED_SENSOR].reshape(data.shape).numpy(),
-        done=data["next", "done"].reshape(data.shape).numpy(),
-        untimed=time_first[0].shape[1],
-    )
-
-
-def replay_fps(run: Collected, *, clock=time.perf_counter) -> float:
-    """Step fresh seeded simulators with the collector's actions, in its order (all
-    simulators at each time step); frames/s over the steps the collector timed.
-
-    Raises:
-        RuntimeError: a reward, the checked sensor or an episode end differs from what
-            the collector recorded (then this is not the same work).
-    """
-    n, steps = run.rewards.shape
-    envs = [ConditionMixtureEnv("pile_loader", {}, CONDITIONS, REWARDS, seed=i) for i in range(n)]
-    for env in envs:
-        env.reset()
-    rewards = np.zeros((n, steps), dtype=np.float32)
-    sensor = np.zeros((n, steps), dtype=np.float32)
-    done = np.zeros((n, steps), dtype=bool)
-    started = None
-    for t in range(steps):
-        if t == run.untimed:
-            started = clock()
-        for i, env in enumerate(envs):
-            obs, rewards[i, t], terminated, truncated, _ = env.step(run.actions[i, t])
-            sensor[i, t] = obs[CHECKED_SENSOR][0]
-            done[i, t] = terminated or truncated
-            if done[i, t]:
-                env.reset()
-    elapsed = clock() - started
-    for env in envs:
-        env.close()
-    for name, got, want in (
-        ("reward", rewards, run.rewards),
-        (CHECKED_SENSOR, sensor, run.sensor),
-        ("done", done, run.done),
-    ):
-        if not np.array_equal(got, want):
-            where = np.argwhere(got != want)[0]
-            raise RuntimeError(
-                f"replay: {name} differs from the collector's at simulator {where[0]}, "
-                f"step {where[1]}: not the same trajectories"
-            )
-    return n * (steps - run.untimed) / elapsed
+    replay.close()
+    return counted / collect_s, counted / replay_s
 
 
 def main() -> None:
@@ -251,7 +248,7 @@ def main() -> None:
             )
         )
     for name, backend, workers, envs in collectors:
-        fps, run = collector_fps(
+        fps, replay = collector_fps(
             frames,
             per_batch,
             actor,
@@ -261,7 +258,6 @@ def main() -> None:
             envs=envs,
             clock=clock,
         )
-        replay = replay_fps(run, clock=clock)
         rows.append((f"replay: {workers * envs} simulators", replay, None))
         rows.append((name, fps, replay))
     baseline = rows[0][1]
