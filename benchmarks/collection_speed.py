@@ -8,16 +8,35 @@ Rows (same conditions mixture, same actor, measured in this run):
 
 | row | what |
 |---|---|
-| raw env | ``ConditionMixtureEnv.step`` with a fixed action: the simulator alone |
+| raw env (fixed action) | ``ConditionMixtureEnv.step``, one simulator, action [0.2, 0.1, 0.6] |
 | raw env + actor | the same, the cloned actor choosing each action (no TorchRL) |
-| Collector, 1 env | TorchRL ``Collector`` over ``GymWrapper``, stochastic actor |
+| Collector, 1 env | TorchRL ``Collector`` over ``GymWrapper``, fine-tuning's PPO policy |
 | Collector, E envs | the same over E simulators batched in one ``SimulatorBatchEnv`` |
 | MultiSyncCollector | TorchRL multi-process collector, W workers x E envs each |
+| replay: ... | the simulators a collector row stepped, rebuilt with the same seeds and |
+| | stepped in this process with the actions that collector took (no actor, no |
+| | TorchRL): what the simulators alone cost on those trajectories |
 
-Ratios are against the raw env row. Without ``--checkpoint`` an untrained DANNet with
-unit statistics stands in (same network size). The multi-process row excludes the
-workers' start-up (spawned processes import torch, TorchRL and MuJoCo: seconds), measured
-from the first batch to the last.
+The policy is what PPO fine-tuning collects with: ``PPOLearner.collection_policy``, the
+fused sampler around ``make_stochastic_actor(actor)``
+(``pilerl.policies.collection_policy``); ``--policy probabilistic`` collects with the
+``ProbabilisticActor`` itself (what main collected with; bit-identical batches).
+
+Two ratios. ``x fixed`` is against the first row, the baseline the issue's figures used:
+one simulator driven by a fixed action. It mixes two things: what collection adds, and what
+the simulator costs on other trajectories (the actor's actions drive the machine into
+other states than the fixed action's, at another cost per step). ``x replay`` is each
+collector row against the replay of its own simulators and actions: only what collection
+adds (the actor, TorchRL, the batched env) counts. The replay checks that it reproduced
+the collector's trajectories (equal rewards, observations and episode ends, else it stops
+with an error). Issue #18's rows 4-5 are read against ``x replay`` (docs/performance.md
+says why); ``x fixed`` is printed beside it.
+
+The collector and its replay are timed alternately, batch by batch over the same frames
+(a multi-process collector's workers wait while the replay runs), so that a change in the
+machine's load hits both. The first batch (start-up; for the multi-process row the
+workers' spawn and imports) is left out of both. Without ``--checkpoint`` an untrained
+DANNet with unit statistics stands in (same network size).
 
 ``--cpu`` times the one-process rows with this process's CPU time instead of the wall
 clock: on a machine loaded by other jobs the wall clock counts the time the scheduler gave
@@ -31,7 +50,7 @@ import time
 
 import numpy as np
 import torch
-from tensordict import TensorDict
+from tensordict import TensorDict, TensorDictBase
 
 from pilerl.policies import load_actor, make_actor, make_stochastic_actor
 from pilerl.rl.collection import make_collector
@@ -42,6 +61,9 @@ CONDITIONS = {"summer": 1.0, "winter_a": 1.0, "winter_b": 1.0, "winter_c": 1.0, 
 REWARDS = {"reward_fill": 1.0, "reward_success": 1.0, "reward_time": 1.0}
 SENSORS = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
 ATTENTION = [*SENSORS, "boom_pressure", "bucket_pressure", "pump_angle"]
+FIXED_ACTION = [0.2, 0.1, 0.6]
+CHECKED_SENSOR = "boom_angle"  # the observation the replay compares (besides the reward)
+POLICIES = ("fused", "probabilistic")
 
 
 def cloned_actor(checkpoint: str | None):
@@ -57,7 +79,7 @@ CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 def raw_fps(frames: int, actor=None, *, clock=time.perf_counter) -> float:
     env = ConditionMixtureEnv("pile_loader", {}, CONDITIONS, REWARDS)
     obs, _ = env.reset(seed=0)
-    action = np.array([0.2, 0.1, 0.6], dtype=np.float32)
+    action = np.array(FIXED_ACTION, dtype=np.float32)
     started = clock()
     for _ in range(frames):
         if actor is not None:
@@ -72,35 +94,120 @@ def raw_fps(frames: int, actor=None, *, clock=time.perf_counter) -> float:
     return frames / elapsed
 
 
+class Replay:
+    """A collector's simulators rebuilt and stepped with the actions it took, in this process.
+
+    Simulator ``i`` is built with seed ``i`` (``make_collector``'s seeds with ``seed=0``:
+    worker ``k``'s sub-env ``j`` is ``k * envs + j``) and reset once, as the collector
+    resets its env once when it is built. ``step`` takes one collected batch and steps
+    every simulator through it, all simulators at each time step (the batched env's
+    order), resetting those whose episode ended.
+    """
+
+    def __init__(self, simulators: int) -> None:
+        self.envs = [
+            ConditionMixtureEnv("pile_loader", {}, CONDITIONS, REWARDS, seed=i)
+            for i in range(simulators)
+        ]
+        for env in self.envs:
+            env.reset()
+
+    def step(self, batch: TensorDictBase) -> None:
+        """Replay ``batch`` (time last, any leading dims: ``[..., T]``).
+
+        Raises:
+            RuntimeError: a reward, the checked sensor or an episode end differs from what
+                the collector recorded (then this is not the same work).
+        """
+        rows = batch.reshape(-1, batch.shape[-1]) if batch.ndim > 1 else batch.unsqueeze(0)
+        if rows.shape[0] != len(self.envs):
+            raise RuntimeError(f"replay: {rows.shape[0]} simulators for {len(self.envs)}")
+        actions = rows["action"].numpy()
+        n, steps = rows.shape
+        rewards = np.zeros((n, steps), dtype=np.float32)
+        sensor = np.zeros((n, steps), dtype=np.float32)
+        done = np.zeros((n, steps), dtype=bool)
+        for t in range(steps):
+            for i, env in enumerate(self.envs):
+                obs, rewards[i, t], terminated, truncated, _ = env.step(actions[i, t])
+                sensor[i, t] = obs[CHECKED_SENSOR][0]
+                done[i, t] = terminated or truncated
+                if done[i, t]:
+                    env.reset()
+        for name, got, want in (
+            ("reward", rewards, rows["next", "reward"]),
+            (CHECKED_SENSOR, sensor, rows["next", CHECKED_SENSOR]),
+            ("done", done, rows["next", "done"]),
+        ):
+            want = want.reshape(n, steps).numpy()
+            if not np.array_equal(got, want):
+                where = np.argwhere(got != want)[0]
+                raise RuntimeError(
+                    f"replay: {name} differs from the collector's at simulator {where[0]}, "
+                    f"step {where[1]} of a batch: not the same trajectories"
+                )
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
+
+
+def collection_policy(actor, policy: str):
+    """PPO's collection policy around ``actor`` (``fused``) or its ``ProbabilisticActor``."""
+    stochastic = make_stochastic_actor(actor)
+    if policy == "probabilistic":
+        return stochastic
+    # imported here: ``--policy probabilistic`` also runs on versions without it
+    from pilerl.policies.collection_policy import make_collection_policy
+
+    return make_collection_policy(stochastic)
+
+
 def collector_fps(
     frames: int,
     frames_per_batch: int,
     actor,
     *,
     backend: str,
+    policy: str = "fused",
     workers: int = 1,
     envs: int = 1,
     clock=time.perf_counter,
-) -> float:
-    policy = make_stochastic_actor(actor)
+) -> tuple[float, float]:
+    """(collector, replay) frames/s, batch by batch alternately over the same frames.
+
+    After each batch the collector's simulators are replayed through it (a multi-process
+    collector's workers wait meanwhile: they collect when the next batch is asked for),
+    so both meet the same machine load. The first batch (start-up) is replayed untimed.
+    """
     factory = TrainingEnvFactory("pile_loader", {}, CONDITIONS, REWARDS, num_envs=envs)
     collector = make_collector(
         factory,
-        policy,
+        collection_policy(actor, policy),
         frames_per_batch=frames_per_batch,
         total_frames=frames + frames_per_batch,
         backend=backend,
         workers=workers,
     )
-    counted, started = 0, None
-    for batch in collector:
-        if started is None:  # the first batch pays for start-up: timing starts after it
-            started = clock()
-            continue
+    replay = Replay(workers * envs)
+    kept = ("action", ("next", "reward"), ("next", "done"), ("next", CHECKED_SENSOR))
+    batches = iter(collector)
+    replay.step(next(batches).select(*kept))  # start-up: untimed
+    counted, collect_s, replay_s = 0, 0.0, 0.0
+    while True:
+        started = clock()
+        batch = next(batches, None)
+        collect_s += clock() - started
+        if batch is None:
+            break
+        batch = batch.select(*kept).clone()
+        started = clock()
+        replay.step(batch)
+        replay_s += clock() - started
         counted += batch.numel()
-    elapsed = clock() - started
     collector.shutdown()
-    return counted / elapsed
+    replay.close()
+    return counted / collect_s, counted / replay_s
 
 
 def main() -> None:
@@ -110,6 +217,12 @@ def main() -> None:
     parser.add_argument("--frames-per-batch", type=int, default=1024)
     parser.add_argument("--workers", type=int, default=2, help="multi-process collector size")
     parser.add_argument("--envs", type=int, default=8, help="simulators batched per collector")
+    parser.add_argument(
+        "--policy",
+        choices=POLICIES,
+        default="fused",
+        help="the collection policy: PPO's fused sampler or its ProbabilisticActor",
+    )
     parser.add_argument("--cpu", action="store_true", help="one-process rows in CPU time")
     args = parser.parse_args()
     clock = CLOCKS["cpu" if args.cpu else "wall"]
@@ -117,37 +230,42 @@ def main() -> None:
     torch.manual_seed(0)
     actor = cloned_actor(args.checkpoint)
     frames, per_batch = args.frames, args.frames_per_batch
-    rows = [
-        ("raw env (fixed action)", raw_fps(frames, clock=clock)),
-        ("raw env + actor", raw_fps(frames, actor, clock=clock)),
-        (
-            "Collector, 1 env",
-            collector_fps(frames, per_batch, actor, backend="single", clock=clock),
-        ),
-        (
-            f"Collector, {args.envs} envs",
-            collector_fps(frames, per_batch, actor, backend="single", envs=args.envs, clock=clock),
-        ),
+    rows: list[tuple[str, float, float | None]] = [
+        ("raw env (fixed action)", raw_fps(frames, clock=clock), None),
+        ("raw env + actor", raw_fps(frames, actor, clock=clock), None),
+    ]
+    collectors = [
+        ("Collector, 1 env", "single", 1, 1),
+        (f"Collector, {args.envs} envs", "single", 1, args.envs),
     ]
     if not args.cpu:
-        rows.append(
+        collectors.append(
             (
                 f"MultiSyncCollector, {args.workers}x{args.envs}",
-                collector_fps(
-                    frames,
-                    per_batch,
-                    actor,
-                    backend="multiprocess",
-                    workers=args.workers,
-                    envs=args.envs,
-                ),
+                "multiprocess",
+                args.workers,
+                args.envs,
             )
         )
+    for name, backend, workers, envs in collectors:
+        fps, replay = collector_fps(
+            frames,
+            per_batch,
+            actor,
+            backend=backend,
+            policy=args.policy,
+            workers=workers,
+            envs=envs,
+            clock=clock,
+        )
+        rows.append((f"replay: {workers * envs} simulators", replay, None))
+        rows.append((name, fps, replay))
     baseline = rows[0][1]
     unit = "frames/CPU s" if args.cpu else "frames/s"
-    print(f"{'row':<28} {unit:>12} {'x raw':>7}")
-    for name, fps in rows:
-        print(f"{name:<28} {fps:>12.0f} {fps / baseline:>7.2f}")
+    print(f"{'row':<30} {unit:>12} {'x fixed':>8} {'x replay':>9}")
+    for name, fps, replay in rows:
+        versus_replay = f"{fps / replay:>9.2f}" if replay else f"{'':>9}"
+        print(f"{name:<30} {fps:>12.0f} {fps / baseline:>8.2f} {versus_replay}")
 
 
 if __name__ == "__main__":

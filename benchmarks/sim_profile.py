@@ -7,8 +7,8 @@ Paths (fixed action, no sensor noise, the default pile loader, one thread):
 - ``batch4``: ``make_torchrl_env(num_envs=4).rollout`` (one tensordict for 4 simulators).
 - ``collect8``: fine-tuning's collection as ``benchmarks/collection_speed.py`` row 4: a
   TorchRL ``Collector`` over 8 ``ConditionMixtureEnv`` simulators batched in one
-  ``SimulatorBatchEnv``, the stochastic untrained DANNet acting (``--steps`` frames, batches
-  of 1024).
+  ``SimulatorBatchEnv``, the stochastic untrained DANNet acting through PPO's fused
+  sampler (``--steps`` frames, batches of 1024).
 
 The profile is taken after one untimed run (imports, compiled models), sorted by own
 time and by cumulative time; ``--out`` writes the text (docs/performance/ keeps them).
@@ -74,9 +74,8 @@ def path_runner(path: str, steps: int):
 def collector_runner(frames: int):
     """``collection_speed.py``'s row 4: a Collector over 8 batched training simulators."""
     sys.path.insert(0, str(Path(__file__).parent))
-    from collection_speed import CONDITIONS, REWARDS, cloned_actor
+    from collection_speed import CONDITIONS, REWARDS, cloned_actor, collection_policy
 
-    from pilerl.policies import make_stochastic_actor
     from pilerl.rl.collection import make_collector
     from pilerl.rl.envs import TrainingEnvFactory
 
@@ -85,7 +84,7 @@ def collector_runner(frames: int):
     per_batch = min(frames, 1024)
     collector = make_collector(
         factory,
-        make_stochastic_actor(cloned_actor(None)),
+        collection_policy(cloned_actor(None), "fused"),  # what PPO collects with
         frames_per_batch=per_batch,
         total_frames=10**9,  # as many batches as asked for
         backend="single",

@@ -12,6 +12,7 @@
 | ``settings`` | ``PolicyConfig``, ``SensorsConfig``: the policy and sensors config groups |
 | ``actors`` | ``make_actor``: a ``TensorDictModule`` writing ``action`` (+ masks) |
 | ``stochastic`` | ``make_stochastic_actor``: ``ProbabilisticActor`` + ``TanhNormal`` for RL |
+| ``collection_policy`` | ``FusedTanhNormalPolicy``: that actor's sampling in one forward |
 | ``levenberg_marquardt`` | ``fit_lm`` |
 | ``checkpoint`` | ``save_actor`` / ``load_actor`` (no pickle code execution) |
 

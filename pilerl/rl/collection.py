@@ -15,6 +15,10 @@ worker ``k`` gets ``seed + k * envs_per_worker``): a TorchRL collector resets it
 once while it is built, before any ``set_seed`` can act, and that first reset decides
 the first episodes. ``restart_collection`` reseeds and resets a running collector. With
 ``single``, the same seeds and the same torch RNG state give bit-identical batches.
+
+``single`` leaves out TorchRL's trajectory ids (``("collector", "traj_ids")``, updated at
+every step: ~2% of its collection time, measured in docs/performance.md): fine-tuning
+reads episode ends from the ``done`` flags, nothing reads the ids.
 """
 
 from __future__ import annotations
@@ -62,6 +66,7 @@ def make_collector(
             total_frames=total_frames,
             exploration_type=ExplorationType.RANDOM,
             auto_register_policy_transforms=False,
+            track_traj_ids=False,  # ("collector", "traj_ids"): nothing reads them
         )
     if backend == "multiprocess":
         stride = getattr(create_env_fn, "num_envs", 1)

@@ -1,10 +1,12 @@
 """PPO around a cloned actor: TorchRL ``ClipPPOLoss`` + ``GAE`` + a demo regulariser.
 
-The collecting policy is ``make_stochastic_actor(actor)``: a ``TanhNormal`` around the
+The learner's actor is ``make_stochastic_actor(actor)``: a ``TanhNormal`` around the
 cloned action with a learned, state-independent scale, so at the start the mean action is
-exactly the cloned one. The cloned network stays in eval mode (no dropout): fine-tuning
-changes its weights, not its architecture, and the deterministic action stays the one
-``best.pt`` will reproduce.
+exactly the cloned one. ``ClipPPOLoss`` reads its distribution; the collector runs
+``FusedTanhNormalPolicy`` around it (the same parameters and bit-identical samples, in one
+forward pass with plain tensors: ``pilerl.policies.collection_policy``). The cloned
+network stays in eval mode (no dropout): fine-tuning changes its weights, not its
+architecture, and the deterministic action stays the one ``best.pt`` will reproduce.
 
 One ``update`` per collected batch: GAE advantages with the value network, then
 ``epochs`` passes of minibatches. The actor loss is PPO's clipped objective (plus the
@@ -28,6 +30,7 @@ from pilerl.policies.checkpoint_file import (
     load_module_state,
     load_optimizer_state,
 )
+from pilerl.policies.collection_policy import make_collection_policy
 
 from .config import PPOConfig
 from .critics import make_value_network
@@ -55,6 +58,7 @@ class PPOLearner:
         self.settings = settings
         self.policy = actor_policy(actor).eval()
         self.actor = make_stochastic_actor(actor, init_scale=settings.init_scale)
+        self._collection_policy = make_collection_policy(self.actor)
         self.critic = make_value_network(self.policy, settings.critic_hidden)
         self.advantage = GAE(
             gamma=settings.gamma,
@@ -88,8 +92,9 @@ class PPOLearner:
 
     @property
     def collection_policy(self) -> TensorDictModule:
-        """What the collector runs (samples around the cloned action)."""
-        return self.actor
+        """What the collector runs: ``self.actor``'s samples around the cloned action, fused
+        into one forward pass (its parameters)."""
+        return self._collection_policy
 
     def state_dict(self) -> dict[str, object]:
         """What ``last.ckpt`` stores: weights, optimiser and the minibatch-order generator."""
