@@ -37,7 +37,7 @@ from . import paper_numbers
 from .comparisons import compare, seed_spread_text, threshold
 from .document import Report
 from .paper_numbers import Claim, Key
-from .results import Cell, closed_loop_cells, offline_validation_curves
+from .results import Cell, closed_loop_cells, offline_validation_curves, unfinished_ensemble_jobs
 
 SENSOR_LABELS = {"s": "θ1, θ2, p_d", "s_pt": "+ p_t", "s_pt_sprime": "+ p_t, s′"}
 CONTROLLER_LABELS = {
@@ -378,6 +378,12 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
             ]
         )
     report.paragraph(f"Sweep `{sweep_dir}`: mean ± std over seeds of the validation MSE.")
+    unfinished = unfinished_ensemble_jobs(sweep_dir)
+    if unfinished:
+        report.paragraph(
+            "Unfinished jobs (no loss curves yet, left out): "
+            + ", ".join(str(job) for job in unfinished)
+        )
     report.table(
         ["controller", "inputs", "data", "seeds", "epochs", "final loss", "lowest mean"], rows
     )

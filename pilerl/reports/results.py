@@ -284,6 +284,12 @@ def offline_validation_curves(sweep_dir: str | Path) -> list[LossCurves]:
     return curves
 
 
+def unfinished_ensemble_jobs(sweep_dir: str | Path) -> list[Path]:
+    """The ensemble jobs under ``sweep_dir`` without ``ensemble_curves.csv`` (still running,
+    or stopped): ``offline_validation_curves`` leaves them out, a report lists them."""
+    return [job for job in job_directories(sweep_dir) if not (job / "ensemble_curves.csv").exists()]
+
+
 def _steps_per_epoch(config: dict) -> int | None:
     """Gradient steps per epoch of a job, from its training set's size (if it is here)."""
     index = Path(config["train_data"]) / "index.json"

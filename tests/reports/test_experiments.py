@@ -335,8 +335,11 @@ def test_report_of_offline_validation_checks_the_papers_two_claims(tmp_path):
             f"1,0.2,0.01,0.1,0.01\n2,0.1,0.01,{final},0.002\n"
         )
         (job / "metrics.json").write_text(json.dumps({"seeds": 4}))
+    fake_job(sweep, 3, "annet", "s_pt", "d_i", {})  # still training: no curves yet
     markdown, _ = build_report(out_dir=tmp_path / "report", exp4=sweep)
     text = markdown.read_text()
+    assert f"Unfinished jobs (no loss curves yet, left out): {sweep / '3'}" in text
+    assert "| ANNet |" not in text
     assert "| NNetV2 | + p_t | D_II | 4 | 2 | 0.0600 ± 0.0020 | 0.0600 |" in text
     assert "| All data D_I gives a lower validation loss than D_II. | holds |" in text
     assert "lower validation loss than NNetV2. | holds |" in text  # DANNet 0.055 < 0.06
