@@ -106,7 +106,13 @@ def controller_of(checkpoint: str | None, name: str | None) -> tuple[Controller,
     if isinstance(algorithm, dict):  # a finetune run's config group
         algorithm = algorithm.get("name")
     if config.get("checkpoint") and algorithm:  # a finetune run, from a cloned controller
-        (controller, sensors, dataset), seed = controller_of(str(config["checkpoint"]), None)
+        source = Path(str(config["checkpoint"]))
+        if not (source.is_dir() or source.parent.is_dir()):  # relative to where it ran
+            raise ValueError(
+                f"{run_dir}: the fine-tuning run's checkpoint {source} does not exist from "
+                f"{Path.cwd()}; run the report from the directory the fine-tuning ran in"
+            )
+        (controller, sensors, dataset), seed = controller_of(str(source), None)
         return (f"{controller}+{algorithm}", sensors, dataset), seed
     return (name or run_dir.name, "", ""), 0
 

@@ -11,7 +11,7 @@ import yaml
 
 from pilerl.reports import paper_numbers
 from pilerl.reports.comparisons import compare, threshold
-from pilerl.reports.cross_soil import EVERY_CONDITION, soil_agreement, soil_cells
+from pilerl.reports.cross_soil import EVERY_CONDITION, controller_of, soil_agreement, soil_cells
 from pilerl.reports.paper import build_report, check_claim
 from pilerl.reports.results import Cell, closed_loop_cells, job_results
 from pilerl.reports.stats import fisher_greater_p, kendall_tau_b, sign_flip_p
@@ -477,7 +477,6 @@ def test_a_real_sweep_over_seeds_pools_them_on_paired_starts(datasets, tmp_path)
 
 
 def test_a_checkpoint_outside_a_train_bc_job_is_named_by_its_directory(tmp_path):
-    from pilerl.reports.cross_soil import controller_of
 
     finetuned = tmp_path / "finetune" / "dannet_rlpd"
     (finetuned / ".hydra").mkdir(parents=True)
@@ -547,3 +546,10 @@ def test_fine_tuned_controllers_are_their_cloned_seeds_fine_tuned(tmp_path):
     )[0].read_text()
     assert "| DANNet + PPO | + p_t | D_II | 100% | 75% | +25 points |" in text
     assert "| DANNet | + p_t | D_II | 50% | 25% | +25 points |" in text
+    # a fine-tuning run whose checkpoint does not resolve from here is named, not guessed
+    moved = tmp_path / "finetune" / "moved"
+    (moved / ".hydra").mkdir(parents=True)
+    settings = {"checkpoint": "elsewhere/train/0/best.pt", "algorithm": {"name": "ppo"}}
+    (moved / ".hydra" / "config.yaml").write_text(yaml.safe_dump(settings))
+    with pytest.raises(ValueError, match="checkpoint elsewhere/train/0/best.pt does not exist"):
+        controller_of(str(moved / "best.pt"), None)
