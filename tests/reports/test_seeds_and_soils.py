@@ -477,7 +477,6 @@ def test_a_real_sweep_over_seeds_pools_them_on_paired_starts(datasets, tmp_path)
 
 
 def test_a_checkpoint_outside_a_train_bc_job_is_named_by_its_directory(tmp_path):
-
     finetuned = tmp_path / "finetune" / "dannet_rlpd"
     (finetuned / ".hydra").mkdir(parents=True)
     (finetuned / ".hydra" / "config.yaml").write_text(yaml.safe_dump({"algorithm": "ppo"}))
