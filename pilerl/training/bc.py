@@ -184,7 +184,10 @@ def train_bc(
                 f"trainer 'fit' is for the random forest, not {policy.config.controller!r}"
             )
         if draw_ahead or draw_packed_ahead:
-            _draw_ahead_unused("the random forest is fitted, it has no dropout")
+            _draw_ahead_unused(
+                "the random forest is fitted, it has no dropout",
+                "draw_packed_ahead" if draw_packed_ahead else "draw_ahead",
+            )
         return _fit_forest(actor, train, validation, run_dir=run_dir, logger=logger)
     torch.manual_seed(settings.seed)
     # only what training reads: indexing a batch then copies 8 columns, not the whole
@@ -240,7 +243,8 @@ def train_bc(
             _draw_ahead_unused(
                 f"the {trainer} trainer's steps are not drawn ahead"
                 if trainer != "gradient"
-                else f"{policy.config.controller!r} has no dropout layer with p > 0"
+                else f"{policy.config.controller!r} has no dropout layer with p > 0",
+                "draw_packed_ahead" if draw_packed_ahead else "draw_ahead",
             )
         for epoch in bar:
             policy.train()
@@ -324,8 +328,8 @@ def _gradient_epoch(
     return total / len(order)
 
 
-def _draw_ahead_unused(reason: str) -> None:
-    log.warning("train_bc: draw_ahead has no effect: %s", reason)
+def _draw_ahead_unused(reason: str, option: str = "draw_ahead") -> None:
+    log.warning("train_bc: %s has no effect: %s", option, reason)
 
 
 def _fit_forest(

@@ -6,10 +6,10 @@ step count, so a step of RAdam is some 180 small kernels, 15% of a DANNet step a
 512. ``FlatRAdam`` keeps the two moment estimates of every parameter in one contiguous
 tensor each and runs the same operations, in the same order and with the same Python
 scalars, once over all of them: an element-wise operation computes each element from the
-same inputs whatever tensor holds it, so the parameters, moments and losses are
-bit-identical to torch's step (tested against ``torch.optim.RAdam`` over whole training
-runs; an operation whose vectorised and scalar code rounded differently would show
-there).
+same inputs whatever tensor holds it (on the builds tested: torch 2.13 CPU), so the
+parameters, moments and losses are bit-identical to torch's step (tested against
+``torch.optim.RAdam`` over whole training runs; an operation whose vectorised and
+scalar code rounded differently would show there).
 
 The torch optimiser stays the owner of the state that checkpoints save and resume:
 ``FlatRAdam`` reads its moments and step counts when made and writes them back with
@@ -45,16 +45,24 @@ class FlatRAdam:
         if type(optimizer) is not torch.optim.RAdam:
             raise TypeError(f"FlatRAdam: needs a torch.optim.RAdam, got {type(optimizer)}")
         if len(optimizer.param_groups) != 1:
-            raise ValueError("FlatRAdam: one parameter group only")
+            raise ValueError(
+                f"FlatRAdam: one parameter group only, got {len(optimizer.param_groups)}"
+            )
         group = optimizer.param_groups[0]
         unsupported = {k: group.get(k) for k, v in SUPPORTED.items() if group.get(k, v) != v}
+        if group.get("foreach"):  # torch's multi-tensor step rounds differently
+            unsupported["foreach"] = group["foreach"]
         if unsupported:
             raise ValueError(f"FlatRAdam: RAdam settings not supported: {unsupported}")
         self.optimizer = optimizer
         self.group = group
         self.params: list[torch.Tensor] = list(group["params"])
         if any(p.is_complex() or p.dtype != self.params[0].dtype for p in self.params):
-            raise ValueError("FlatRAdam: the parameters must be real and of one dtype")
+            dtypes = sorted({str(p.dtype) for p in self.params})
+            raise ValueError(f"FlatRAdam: the parameters must be real and of one dtype: {dtypes}")
+        if any(p.device.type != "cpu" for p in self.params):
+            devices = sorted({str(p.device) for p in self.params})
+            raise ValueError(f"FlatRAdam: CPU parameters only (flat CPU buffers), got {devices}")
         self.sizes = [p.numel() for p in self.params]
         total = sum(self.sizes)
         self.exp_avg = torch.zeros(total, dtype=self.params[0].dtype)
@@ -92,8 +100,13 @@ class FlatRAdam:
         ``t.reciprocal() * c``, as torch's ``Tensor.__rtruediv__`` computes it.
         """
         grads = [p.grad for p in self.params]
-        if any(g is None for g in grads):
-            raise RuntimeError("FlatRAdam: every parameter needs a gradient (call backward)")
+        missing = [f"#{i} {tuple(p.shape)}" for i, p in enumerate(self.params) if p.grad is None]
+        if missing:
+            raise RuntimeError(
+                f"FlatRAdam: every parameter needs a gradient; none for {', '.join(missing)} "
+                "(not used by the loss, or no backward call): torch.optim.RAdam would skip "
+                "them, FlatRAdam steps every parameter"
+            )
         group = self.group
         beta1, beta2 = group["betas"]
         lr, eps = float(group["lr"]), group["eps"]

@@ -109,8 +109,9 @@ class TrainBCConfig:
         if self.draw_packed_ahead and self.dropout_masks != "packed" and self.ensemble_seeds == 1:
             raise ValueError(
                 f"draw_packed_ahead: draws packed masks ahead, dropout_masks="
-                f"{self.dropout_masks} draws torch's; set dropout_masks=packed (other weights "
-                "than torch's draws) or draw_ahead=true instead (torch's masks ahead)"
+                f"{self.dropout_masks or 'null'} draws torch's; set dropout_masks=packed "
+                "(other weights than torch's draws) or draw_ahead=true instead (torch's "
+                "masks ahead)"
             )
         self.evaluation.condition_names(self.env)
         if self.ensemble_seeds > 1 and self.evaluation.episodes > 0:

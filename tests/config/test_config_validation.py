@@ -161,6 +161,8 @@ COMBINATIONS = [
     ("train_bc", ["dropout_masks=fast"], "dropout_masks"),
     ("train_bc", ["dropout_masks=packed", "draw_ahead=true"], "draw_ahead"),
     ("train_bc", ["draw_ahead=sometimes"], "draw_ahead"),
+    ("train_bc", ["draw_packed_ahead=sometimes"], "draw_packed_ahead"),
+    ("train_bc", ["draw_packed_ahead=true"], "draw_packed_ahead"),  # needs packed masks
     ("train_bc", ["policy=no_such_policy"], "policy"),
     ("train_bc", ["policy.name=no_such_policy"], "policy.name"),
     ("train_bc", ["+policy.options.hidden=-4"], "policy.options"),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import io
+
 import pytest
 import torch
 
@@ -86,3 +88,33 @@ def test_flat_radam_refuses_what_it_does_not_compute():
     untouched = torch.optim.RAdam(model.parameters())
     FlatRAdam(untouched).store()  # no step taken: no state, as torch's
     assert untouched.state_dict()["state"] == {}
+
+
+def test_flat_radam_goes_on_from_a_torch_radam_checkpoint():
+    """A run checkpointed by torch's RAdam (the code before FlatRAdam), saved, loaded into a
+    new optimiser and resumed with FlatRAdam trains as torch's RAdam would have."""
+    torch.manual_seed(0)
+    weights, losses, _ = _train(DANNet(4), 30, flat=False)
+    torch.manual_seed(0)
+    controller = DANNet(4).train()
+    optimizer = torch.optim.RAdam(controller.parameters(), lr=1e-3)
+    generator = torch.Generator().manual_seed(1)
+    resumed_losses = []
+    torch.manual_seed(2)
+    for i in range(30):
+        if i == 9:  # checkpoint: the state dict through torch.save and a fresh optimiser
+            buffer = io.BytesIO()
+            torch.save(optimizer.state_dict(), buffer)
+            buffer.seek(0)
+            optimizer = torch.optim.RAdam(controller.parameters(), lr=1e-3)
+            optimizer.load_state_dict(torch.load(buffer))
+            optimizer = FlatRAdam(optimizer)
+        s = torch.randn(37, 4, generator=generator)
+        target = torch.tanh(s[:, :3].sum(-1, keepdim=True)).expand(37, 3)
+        loss = ((controller(s).action - target) ** 2).mean()
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        resumed_losses.append(float(loss.detach()))
+    assert resumed_losses == losses
+    assert all(torch.equal(weights[k], controller.state_dict()[k]) for k in weights)
