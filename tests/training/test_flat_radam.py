@@ -12,19 +12,36 @@ from pilerl.policies.controllers import NNetV2
 from pilerl.training.flat_radam import FlatRAdam
 
 
-def _train(controller, steps: int, *, flat: bool, dtype=torch.float32, resume_at: int = 0):
+def _train(
+    controller,
+    steps: int,
+    *,
+    flat: bool,
+    dtype=torch.float32,
+    resume_at: int = 0,
+    from_torch_at: int = 0,
+):
     """``steps`` RAdam steps on a fixed regression task; returns the weights, the losses and
     the optimiser's state dict. ``resume_at``: a new FlatRAdam is made from the torch
-    optimiser's state at that step (as train_bc does after a resume)."""
+    optimiser's state at that step (as train_bc does after a resume). ``from_torch_at``:
+    torch's RAdam steps until then, its state dict goes through ``torch.save`` into a fresh
+    optimiser and FlatRAdam goes on from it (a checkpoint of the code before FlatRAdam)."""
     controller = controller.to(dtype).train()
     optimizer = torch.optim.RAdam(controller.parameters(), lr=1e-3)
-    step = FlatRAdam(optimizer) if flat else optimizer
+    step = FlatRAdam(optimizer) if flat and not from_torch_at else optimizer
     generator = torch.Generator().manual_seed(1)
     losses = []
     torch.manual_seed(2)  # the dropout draws
     for i in range(steps):
         if flat and i == resume_at and i > 0:
             step.store()
+            step = FlatRAdam(optimizer)
+        if flat and i == from_torch_at and i > 0:
+            buffer = io.BytesIO()
+            torch.save(optimizer.state_dict(), buffer)
+            buffer.seek(0)
+            optimizer = torch.optim.RAdam(controller.parameters(), lr=1e-3)
+            optimizer.load_state_dict(torch.load(buffer))
             step = FlatRAdam(optimizer)
         s = torch.randn(37, 4, generator=generator, dtype=dtype)
         target = torch.tanh(s[:, :3].sum(-1, keepdim=True)).expand(37, 3)
@@ -96,25 +113,6 @@ def test_flat_radam_goes_on_from_a_torch_radam_checkpoint():
     torch.manual_seed(0)
     weights, losses, _ = _train(DANNet(4), 30, flat=False)
     torch.manual_seed(0)
-    controller = DANNet(4).train()
-    optimizer = torch.optim.RAdam(controller.parameters(), lr=1e-3)
-    generator = torch.Generator().manual_seed(1)
-    resumed_losses = []
-    torch.manual_seed(2)
-    for i in range(30):
-        if i == 9:  # checkpoint: the state dict through torch.save and a fresh optimiser
-            buffer = io.BytesIO()
-            torch.save(optimizer.state_dict(), buffer)
-            buffer.seek(0)
-            optimizer = torch.optim.RAdam(controller.parameters(), lr=1e-3)
-            optimizer.load_state_dict(torch.load(buffer))
-            optimizer = FlatRAdam(optimizer)
-        s = torch.randn(37, 4, generator=generator)
-        target = torch.tanh(s[:, :3].sum(-1, keepdim=True)).expand(37, 3)
-        loss = ((controller(s).action - target) ** 2).mean()
-        optimizer.zero_grad()
-        loss.backward()
-        optimizer.step()
-        resumed_losses.append(float(loss.detach()))
+    resumed, resumed_losses, _ = _train(DANNet(4), 30, flat=True, from_torch_at=9)
     assert resumed_losses == losses
-    assert all(torch.equal(weights[k], controller.state_dict()[k]) for k in weights)
+    assert all(torch.equal(weights[k], resumed[k]) for k in weights)
