@@ -80,18 +80,19 @@ PUSH_CONDITIONS = ("summer", "winter_a", "winter_c", "winter_d")
 BODY = {"body_resistance": True}
 
 
-def make_expert(dt: float):
-    """The pile loader's scripted expert, nominal style."""
+def make_expert(dt: float, style: dict | None = None):
+    """The pile loader's scripted expert, nominal style (or with ``style``'s
+    ``OperatorStyle`` fields changed)."""
     from pilerl_pile_loader.operator import make_expert as plugin_expert
 
-    return plugin_expert(dt=dt)
+    return plugin_expert(dt=dt, **(style or {}))
 
 
-def scoop(env: gym.Env, seed: int) -> dict[str, float]:
+def scoop(env: gym.Env, seed: int, expert_style: dict | None = None) -> dict[str, float]:
     """One scripted scoop from a seeded start: final fill (and the soil's extra measures),
     whether it finished, simulated, CPU and wall seconds."""
     obs, _ = env.reset(seed=seed)
-    expert = make_expert(env.unwrapped.dt)
+    expert = make_expert(env.unwrapped.dt, expert_style)
     expert.reset()
     steps = 0
     start, start_cpu = time.perf_counter(), time.process_time()
@@ -118,12 +119,12 @@ def scoop(env: gym.Env, seed: int) -> dict[str, float]:
 
 
 def run_scoops(
-    seeds: list[int], condition: str = "summer", **env_kwargs
+    seeds: list[int], condition: str = "summer", expert_style: dict | None = None, **env_kwargs
 ) -> tuple[dict, float, gym.Env]:
     start = time.process_time()
     env = gym.make(ENV_ID, condition=condition, sensor_noise=0.0, **env_kwargs)
     build_s = time.process_time() - start
-    runs = [scoop(env, seed) for seed in seeds]
+    runs = [scoop(env, seed, expert_style) for seed in seeds]
     summary = {key: float(np.mean([r[key] for r in runs])) for key in runs[0]}
     summary["success"] = sum(bool(r["finished"]) and r["fill"] >= 0.5 for r in runs)
     summary["rt"] = sum(r["sim_s"] for r in runs) / sum(r["cpu_s"] for r in runs)
@@ -201,9 +202,10 @@ def fills_text(fills: list[float]) -> str:
     return ", ".join(f"{f:.2f}" for f in fills)
 
 
-def print_intake_table(seeds: list[int]) -> None:
+def print_intake_table(seeds: list[int], expert_style: dict | None = None) -> None:
     """The heightfield's two intakes, without and with resistance over the buried body, on
-    every condition preset: mean fill, success and episode length."""
+    every condition preset: mean fill, success and episode length (the nominal expert, or
+    with ``expert_style``'s fields changed)."""
     from pilerl_pile_loader.conditions import CONDITIONS
 
     n = len(seeds)
@@ -213,19 +215,48 @@ def print_intake_table(seeds: list[int]) -> None:
         ("fp+body", {"measure_mouth": True, **BODY}),
         ("mouth+body", {"intake": "mouth", **BODY}),
     )
+    who = f"the expert with {expert_style}" if expert_style else "the nominal expert"
     print(
-        f"heightfield, {n} seeded scoops by the nominal expert per condition: "
+        f"heightfield, {n} seeded scoops by {who} per condition: "
         "fill / success / mean episode s (swept: what passed the mouth, fp)"
     )
     header = f"{'condition':>10} {'swept':>5} " + " ".join(f"{name:>17}" for name, _ in configs)
     print(header)
     print("-" * len(header))
     for condition in CONDITIONS:
-        rows = {name: run_scoops(seeds, condition, soil_options=o)[0] for name, o in configs}
+        rows = {
+            name: run_scoops(seeds, condition, expert_style, soil_options=o)[0]
+            for name, o in configs
+        }
         cells = " ".join(
             f"{r['fill']:5.3f} {r['success']:>2}/{n:<2} {r['sim_s']:5.1f}" for r in rows.values()
         )
         print(f"{condition:>10} {rows['fp']['swept']:5.3f} {cells}", flush=True)
+
+
+def expert_options(texts: list[str], parser: argparse.ArgumentParser) -> dict:
+    """``--expert-option FIELD=VALUE ...`` as ``OperatorStyle`` fields: numbers as floats,
+    true/false as booleans; an unknown field or a malformed pair is a parser error."""
+    from dataclasses import fields
+
+    from pilerl_pile_loader.operator import OperatorStyle
+
+    known = {f.name for f in fields(OperatorStyle)} - {"trigger_sensor"}
+    style: dict = {}
+    for text in texts:
+        name, sep, value = text.partition("=")
+        if not sep or name not in known:
+            parser.error(
+                f"--expert-option {text!r}: expected FIELD=VALUE with FIELD one of {sorted(known)}"
+            )
+        if value.lower() in ("true", "false"):
+            style[name] = value.lower() == "true"
+        else:
+            try:
+                style[name] = float(value)
+            except ValueError:
+                parser.error(f"--expert-option {text!r}: {value!r} is not a number or true/false")
+    return style
 
 
 def contact_modulus(text: str) -> float | None:
@@ -270,11 +301,22 @@ def main() -> None:
     parser.add_argument(
         "--penetration", action="store_true", help="fixed-throttle pushes on every soil"
     )
+    parser.add_argument(
+        "--expert-option",
+        nargs="*",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="with --intake-only: change the nominal expert's OperatorStyle fields, e.g. "
+        "push_throttle=0.35 (envs/pilerl_pile_loader/operator.py)",
+    )
     args = parser.parse_args()
+    expert_style = expert_options(args.expert_option, parser)
     seeds = list(range(args.seeds))
     n = len(seeds)
+    if expert_style and not args.intake_only:
+        parser.error("--expert-option: only with --intake-only")
     if args.intake_only:
-        print_intake_table(seeds)
+        print_intake_table(seeds, expert_style)
         return
     if args.penetration:
         print_penetration_table(seeds)
