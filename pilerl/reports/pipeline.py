@@ -117,6 +117,7 @@ def write_pipeline_report(
             f"{config.finetune.time_budget_minutes:g} min). The issue's full-budget run: "
             "docs/results/finetune."
         )
+        cross_check_table(report, results)
     if (out / "finetune" / "success_curve.png").exists():
         report.image("finetune/success_curve.png", "Success during fine-tuning")
 
@@ -163,6 +164,36 @@ def write_pipeline_report(
         report.paragraph("The paper has no winter number for this controller and sensor set.")
     markdown, _ = report.write(out)
     return markdown
+
+
+def cross_check_table(report: Report, results: dict) -> None:
+    """The fine-tune's before / after (``best.pt``) per evaluation group, on the training
+    simulator and on the cross-check's options (``finetune.evaluation.cross_check_env``),
+    if the run had one."""
+    cross = results.get("cross_check")
+    if not cross:
+        return
+    report.paragraph(
+        "Does the gain carry over? The fine-tune's own before / after evaluation "
+        f"({results['before'][next(iter(results['before']))]['episodes']} episodes per group, "
+        "the same starts for both controllers), repeated with the simulator options "
+        f"`{json.dumps(cross['env'])}` (finetune.evaluation.cross_check_env). A gain that "
+        "shows only on the training options was learned from how the simulator models the "
+        "task, not from the task (docs/finetuning.md)."
+    )
+    report.table(
+        ["group", "cloned", "fine-tuned", "cloned, cross-check", "fine-tuned, cross-check"],
+        [
+            [
+                group,
+                _rate(results["before"][group]),
+                _rate(results["after_best"][group]),
+                _rate(cross["before"][group]),
+                _rate(cross["after_best"][group]),
+            ]
+            for group in results["before"]
+        ],
+    )
 
 
 def cloned_text(config, out: Path) -> str:

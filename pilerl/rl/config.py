@@ -12,6 +12,7 @@ exist (a pipeline writes them after building its config).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,7 @@ from omegaconf import MISSING
 from pilerl import checks
 from pilerl.loggers import LoggerConfig
 from pilerl.registry import Registry
+from pilerl.sim.registry import make_gym_env
 from pilerl.sim.settings import EnvConfig
 
 REGULARIZERS = ("bc_demo", "frozen_actor", "none")
@@ -388,6 +390,12 @@ class EvaluationConfig:
         at_scoops: also evaluate as soon as this many training scoops (episodes) have
             ended, for each number listed (increasing; the sample-efficiency benchmark's
             points). Evaluation episodes are not counted as scoops.
+        cross_check_env: simulator options changed for a second before / after
+            evaluation at the end (the cloned actor and ``best.pt``, ``final_episodes``
+            per condition, ``final_seed``), e.g. another soil model:
+            ``{soil: heightfield, soil_options: {intake: mouth, body_resistance: true}}``.
+            A gain that does not carry over to it was learned from how the simulator
+            models the task, not from the task (docs/finetuning.md). Empty: none.
     """
 
     groups: dict[str, list[str]] = field(default_factory=dict)
@@ -401,8 +409,14 @@ class EvaluationConfig:
     video_conditions: dict[str, str] = field(default_factory=dict)
     confidence: float = 0.95
     at_scoops: list[int] = field(default_factory=list)
+    cross_check_env: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if "condition" in self.cross_check_env:
+            raise ValueError(
+                "evaluation.cross_check_env: may not set condition (the evaluation groups "
+                "choose the conditions)"
+            )
         for i, scoops in enumerate(self.at_scoops):
             checks.positive_int(f"evaluation.at_scoops[{i}]", scoops)
         if list(self.at_scoops) != sorted(set(self.at_scoops)):
@@ -484,6 +498,8 @@ class FinetuneConfig:
         self._check_algorithm()
         # the simulator's words in place of empty defaults (see the attributes)
         _, self.evaluation.groups, self.reward_weights = _simulator_words(self)
+        if self.evaluation.cross_check_env:
+            cross_check_kwargs(self, build=True)  # the simulator takes these options
         unknown = sorted(set(self.evaluation.video_conditions) - set(self.evaluation.groups))
         if unknown:
             raise ValueError(
@@ -584,3 +600,28 @@ def uses_demos(config: FinetuneConfig) -> bool:
     """Whether the learner reads the demonstrations (PPO's ``bc_demo`` regulariser, TD3+BC
     with ``demo_fraction > 0``); only then are they loaded."""
     return config.demos is not None and config.algorithm.uses_demos()
+
+
+def cross_check_kwargs(config: FinetuneConfig, *, build: bool = False) -> dict[str, Any]:
+    """The simulator's keyword arguments for the cross-check evaluation: ``config.env``'s
+    with ``evaluation.cross_check_env`` applied (and no condition); an unknown option or a
+    bad value fails naming ``evaluation.cross_check_env``. ``build``: also build the
+    simulator once (a few tens of ms), so that the values only the simulator checks (its
+    soil model's options) fail now, not after training."""
+    try:
+        kwargs = config.env.make_kwargs(**plain_mapping(config.evaluation.cross_check_env))
+        if build:
+            make_gym_env(config.env.simulator, **kwargs).close()
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"evaluation.cross_check_env: {error}") from None
+    kwargs.pop("condition")
+    return kwargs
+
+
+def plain_mapping(value: Any) -> Any:
+    """OmegaConf containers (a Hydra-built config) as plain dicts and lists."""
+    if isinstance(value, Mapping):
+        return {str(k): plain_mapping(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [plain_mapping(v) for v in value]
+    return value

@@ -64,7 +64,15 @@ from pilerl.loggers import make_logger
 from pilerl.policies import CheckpointError, actor_policy, load_actor
 
 from .collection import make_collector, restart_collection, sync_weights
-from .config import FinetuneConfig, PPOConfig, RLPDConfig, resolve_simulator_words, uses_demos
+from .config import (
+    FinetuneConfig,
+    PPOConfig,
+    RLPDConfig,
+    cross_check_kwargs,
+    plain_mapping,
+    resolve_simulator_words,
+    uses_demos,
+)
 from .envs import TrainingEnvFactory
 from .evaluation import evaluate_groups, plot_success_curve, pool_groups
 from .ppo import PPOLearner
@@ -230,17 +238,18 @@ class _Run:
 
     # ------------------------------------------------------------------ evaluation
     def _evaluate(
-        self, actor, *, episodes: int, seed: int
+        self, actor, *, episodes: int, seed: int, env_kwargs: dict | None = None
     ) -> tuple[dict, dict, list[dict], EvaluationPlan]:
         """(success per group, success per condition, episode records, plan) of an actor
-        (in memory, or a saved one's path)."""
+        (in memory, or a saved one's path), on the training simulator's options or on
+        ``env_kwargs``."""
         evaluation = self.config.evaluation
         started = time.perf_counter()
         pooled, records, plan = evaluate_groups(
             controller_for(actor),
             evaluation.groups,
             simulator=self.config.env.simulator,
-            env_kwargs=self.env_kwargs,
+            env_kwargs=self.env_kwargs if env_kwargs is None else env_kwargs,
             episodes=episodes,
             seed=seed,
             workers=evaluation.workers,
@@ -377,9 +386,11 @@ class _Run:
 
     def reserve_s(self) -> float:
         """Time to keep for what follows training: the last periodic evaluation and the
-        final evaluations of ``final.pt`` and ``best.pt``, as long as they took so far."""
+        final evaluations of ``final.pt`` and ``best.pt`` (and the cross-check's two), as
+        long as they took so far."""
         periodic = _periodic(self.config)
-        return (2 if periodic else 1) * self.final_eval_s + periodic * self.periodic_eval_s
+        finals = (2 if periodic else 1) + 2 * bool(self.config.evaluation.cross_check_env)
+        return finals * self.final_eval_s + periodic * self.periodic_eval_s
 
     def _out_of_time(self) -> bool:
         """Whether training must stop to leave time for the evaluations that follow."""
@@ -563,6 +574,7 @@ class _Run:
         else:  # no periodic evaluation to choose by: the last actor is the best one known
             save_any_actor(self.run_dir / BEST_ACTOR, self.evaluated)
             after_best, best_conditions = after_final, final_conditions
+        cross_check = self.cross_check(after_best) if evaluation.cross_check_env else None
         state = self.state
         metrics = {
             "controller": self.policy.config.controller,
@@ -590,9 +602,47 @@ class _Run:
                 "after_final": final_conditions,
             },
         }
+        if cross_check is not None:
+            metrics["cross_check"] = cross_check
         write_text_atomic(self.run_dir / RESULTS_FILE, json.dumps(metrics, indent=1))
         log.info("after (best.pt): %s", _rates(after_best))
         return metrics
+
+    def cross_check(self, after_best: dict) -> dict:
+        """The cloned actor and ``best.pt`` again, on the simulator with
+        ``evaluation.cross_check_env`` (same episodes and starts as the final evaluation);
+        logs each group's gain on both and warns where the gain does not carry over."""
+        evaluation = self.config.evaluation
+        kwargs = cross_check_kwargs(self.config)
+        before, before_conditions, *_ = self._evaluate(
+            self.config.checkpoint,
+            episodes=evaluation.final_episodes,
+            seed=evaluation.final_seed,
+            env_kwargs=kwargs,
+        )
+        after, after_conditions, *_ = self._evaluate(
+            self.run_dir / BEST_ACTOR,
+            episodes=evaluation.final_episodes,
+            seed=evaluation.final_seed,
+            env_kwargs=kwargs,
+        )
+        for group in after:
+            here = after_best[group]["success_rate"] - self.state["before"][group]["success_rate"]
+            there = after[group]["success_rate"] - before[group]["success_rate"]
+            text = (
+                f"cross-check {group}: fine-tuning changed success by {here:+.0%} here and by "
+                f"{there:+.0%} with {dict(evaluation.cross_check_env)}"
+            )
+            if here > 0 and there < here / 2:
+                log.warning("%s: the gain does not carry over (docs/finetuning.md)", text)
+            else:
+                log.info(text)
+        return {
+            "env": plain_mapping(evaluation.cross_check_env),
+            "before": before,
+            "after_best": after,
+            "conditions": {"before": before_conditions, "after_best": after_conditions},
+        }
 
 
 def _periodic(config: FinetuneConfig) -> bool:
@@ -677,6 +727,11 @@ def flat_metrics(results: dict) -> dict[str, float]:
         for group, result in results[when].items():
             for name in ("success_rate", "success_low", "success_high"):
                 flat[f"{when}_{group}_{name}"] = float(result[name])
+    cross_check = results.get("cross_check")
+    for when in ("before", "after_best") if cross_check else ():
+        for group, result in cross_check[when].items():
+            for name in ("success_rate", "success_low", "success_high"):
+                flat[f"cross_check_{when}_{group}_{name}"] = float(result[name])
     return flat
 
 

@@ -52,6 +52,13 @@ def test_pipeline_runs_demos_bc_evaluation_rl_and_reports(tmp_path):
     for heading in ("## Demonstrations", "## Closed loop", "## RL fine-tuning", "(Fig. 5)"):
         assert heading in report
     assert "The paper reports 100% winter success for dannet" not in report  # no pooled winter
+    # the fine-tune's before / after again on the heightfield's mouth intake (conf/pipeline.yaml)
+    results = json.loads((tmp_path / "finetune" / "results.json").read_text())
+    assert results["cross_check"]["env"]["soil_options"] == {
+        "intake": "mouth",
+        "body_resistance": True,
+    }
+    assert "Does the gain carry over?" in report and "fine-tuned, cross-check" in report
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert set(metrics) >= {"cloned_summer_success_rate", "finetuned_winter_c_success_rate"}
 

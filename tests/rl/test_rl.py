@@ -30,7 +30,7 @@ from pilerl.rl import (
 )
 from pilerl.rl.envs import ConditionMixtureEnv, make_training_env
 from pilerl.rl.evaluation import evaluate_groups, pool_groups
-from pilerl.rl.finetuning import RUN_CHECKPOINT, _Run, load_cloned_actor
+from pilerl.rl.finetuning import RUN_CHECKPOINT, _Run, flat_metrics, load_cloned_actor
 from pilerl.rl.ppo import PPOLearner
 from pilerl.rl.td3bc import TD3BCLearner
 
@@ -250,6 +250,54 @@ def test_ppo_smoke_run_then_resume_continues_from_the_checkpoint(cloned, tmp_pat
     assert second["frames"] == 256 and second["batches"] == 4
     evaluations = json.loads((tmp_path / "evaluations.json").read_text())
     assert [e["frames"] for e in evaluations] == [0, 128, 256]
+
+
+def test_cross_check_evaluates_before_and_after_on_the_other_simulator_options(
+    cloned, tmp_path, monkeypatch
+):
+    checkpoint, demos_dir, _ = cloned
+    config = tiny_config(checkpoint, demos_dir, tmp_path, tiny_ppo(), frames=64)
+    other_soil = {"soil_options": {"intake": "mouth", "body_resistance": True}}
+    config = dataclasses.replace(
+        config, evaluation=dataclasses.replace(config.evaluation, cross_check_env=other_soil)
+    )
+    import pilerl.rl.finetuning as finetuning
+
+    soils = []  # the soil options of every evaluation, in order
+
+    def recording(*args, env_kwargs, **kwargs):
+        soils.append(dict(env_kwargs["soil_options"]))
+        return evaluate_groups(*args, env_kwargs=env_kwargs, **kwargs)
+
+    monkeypatch.setattr(finetuning, "evaluate_groups", recording)
+    results = finetune(config, tmp_path, progress=False)
+    # before, after (final.pt = best.pt without periodic evaluations), then the cross-check's
+    # before and after on the other soil
+    assert soils == [{}, {}, other_soil["soil_options"], other_soil["soil_options"]]
+    cross = results["cross_check"]
+    assert cross["env"] == other_soil
+    assert cross["before"]["winter"]["episodes"] == 1
+    assert cross["conditions"]["after_best"]["winter_c"]["episodes"] == 1
+    flat = flat_metrics(results)
+    assert (
+        flat["cross_check_after_best_winter_success_rate"]
+        == cross["after_best"]["winter"]["success_rate"]
+    )
+    assert json.loads((tmp_path / "results.json").read_text())["cross_check"] == cross
+
+
+def test_cross_check_env_is_checked_when_the_config_is_built(cloned, tmp_path):
+    checkpoint, demos_dir, _ = cloned
+    config = tiny_config(checkpoint, demos_dir, tmp_path, tiny_ppo())
+    for bad, match in (
+        ({"soil_options": {"intak": "mouth"}}, "cross_check_env: .*no option.*'intak'"),
+        ({"wheels": 6}, "cross_check_env: .*wheels"),
+        ({"condition": "summer"}, "cross_check_env: may not set condition"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            dataclasses.replace(
+                config, evaluation=dataclasses.replace(config.evaluation, cross_check_env=bad)
+            )
 
 
 def test_resume_refuses_a_different_run(cloned, tmp_path):
