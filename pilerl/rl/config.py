@@ -355,17 +355,34 @@ class CollectionConfig:
             are paid once for all of them (measured ~3x faster at 8 than at 1 on one
             core). With 1, each step also records ``success`` and the reward parts.
         ray_init_kwargs: keyword arguments of ``ray.init`` (``ray`` backend).
+        env_variants: simulator options that the simulators of each collector take in
+            turn (simulator ``i`` gets ``env`` updated by variant ``i mod n``), e.g. a second
+            soil model, so that training sees both (``envs_per_worker`` must be a multiple
+            of their number). Empty: every simulator is ``env``. Evaluations use ``env``
+            (docs/finetuning.md, "Training on several soil models").
     """
 
     backend: str = "single"
     workers: int = 1
     envs_per_worker: int = 8
     ray_init_kwargs: dict[str, Any] = field(default_factory=dict)
+    env_variants: list[dict[str, Any]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         checks.one_of("collection.backend", self.backend, BACKENDS)
         checks.positive_int("collection.workers", self.workers)
         checks.positive_int("collection.envs_per_worker", self.envs_per_worker)
+        if self.env_variants and self.envs_per_worker % len(self.env_variants):
+            raise ValueError(
+                f"collection.env_variants: collection.envs_per_worker ({self.envs_per_worker}) "
+                f"must be a multiple of their number ({len(self.env_variants)})"
+            )
+        for i, variant in enumerate(self.env_variants):
+            if "condition" in variant:
+                raise ValueError(
+                    f"collection.env_variants[{i}]: may not set condition (the curriculum "
+                    "chooses the conditions)"
+                )
 
 
 @dataclass
@@ -500,6 +517,7 @@ class FinetuneConfig:
         _, self.evaluation.groups, self.reward_weights = _simulator_words(self)
         if self.evaluation.cross_check_env:
             cross_check_kwargs(self, build=True)  # the simulator takes these options
+        variant_kwargs(self, build=True)
         unknown = sorted(set(self.evaluation.video_conditions) - set(self.evaluation.groups))
         if unknown:
             raise ValueError(
@@ -608,12 +626,30 @@ def cross_check_kwargs(config: FinetuneConfig, *, build: bool = False) -> dict[s
     bad value fails naming ``evaluation.cross_check_env``. ``build``: also build the
     simulator once (a few tens of ms), so that the values only the simulator checks (its
     soil model's options) fail now, not after training."""
+    return _env_with(
+        config, config.evaluation.cross_check_env, "evaluation.cross_check_env", build=build
+    )
+
+
+def variant_kwargs(config: FinetuneConfig, *, build: bool = False) -> list[dict[str, Any]]:
+    """The simulator's keyword arguments of each ``collection.env_variants`` entry
+    (``config.env``'s updated by the variant, no condition), checked as
+    ``cross_check_kwargs`` checks its own."""
+    return [
+        _env_with(config, variant, f"collection.env_variants[{i}]", build=build)
+        for i, variant in enumerate(config.collection.env_variants)
+    ]
+
+
+def _env_with(
+    config: FinetuneConfig, overrides: Mapping, where: str, *, build: bool
+) -> dict[str, Any]:
     try:
-        kwargs = config.env.make_kwargs(**plain_mapping(config.evaluation.cross_check_env))
+        kwargs = config.env.make_kwargs(**plain_mapping(overrides))
         if build:
             make_gym_env(config.env.simulator, **kwargs).close()
     except (TypeError, ValueError) as error:
-        raise ValueError(f"evaluation.cross_check_env: {error}") from None
+        raise ValueError(f"{where}: {error}") from None
     kwargs.pop("condition")
     return kwargs
 

@@ -14,7 +14,7 @@ seeded, is already reproducible: the same seed replays the same conditions and s
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -154,10 +154,14 @@ def make_training_env(
     *,
     num_envs: int = 1,
     seed: int | None = None,
+    variants: Sequence[Mapping[str, object]] = (),
 ):
     """A TorchRL env around ``num_envs`` ``ConditionMixtureEnv`` simulators.
 
-    Simulator ``i`` is seeded with ``seed + i`` when it is built (``None``: unseeded).
+    Simulator ``i`` is seeded with ``seed + i`` when it is built (``None``: unseeded) and,
+    if ``variants`` are given, built with ``env_kwargs`` updated by ``variants[i % n]``
+    (e.g. half the simulators on another soil model; ``num_envs`` must be a multiple of
+    their number, so every variant gets as many simulators).
 
     - ``num_envs=1``: ``GymWrapper``, batch size ``[]``. Each step's tensordict carries the
       sensors by name, ``reward`` (the weighted parts) and, from ``info``, ``success``,
@@ -167,12 +171,20 @@ def make_training_env(
       paid once for all N (much faster on CPU); sensors, reward, end flags and ``info``
       [N, 2]: success and ``tipped`` (``BATCH_INFO_KEYS``), to count scoops.
     """
+    if variants and num_envs % len(variants):
+        raise ValueError(
+            f"make_training_env: num_envs ({num_envs}) must be a multiple of the number of "
+            f"variants ({len(variants)})"
+        )
     seeds = iter(range(seed, seed + num_envs)) if seed is not None else None
+    built = iter(range(num_envs))
 
     def make_mixture() -> ConditionMixtureEnv:
+        i = next(built)
+        kwargs = {**env_kwargs, **variants[i % len(variants)]} if variants else env_kwargs
         return ConditionMixtureEnv(
             simulator,
-            env_kwargs,
+            kwargs,
             conditions,
             reward_weights,
             seed=None if seeds is None else next(seeds),
@@ -194,7 +206,8 @@ class TrainingEnvFactory:
     """A picklable ``create_env_fn`` for collectors (also in worker processes).
 
     ``seed`` seeds the simulators it builds (``make_training_env``); ``seeded(s)`` is the
-    same factory with another seed (one per collector worker).
+    same factory with another seed (one per collector worker). ``variants``: simulator
+    options that simulator ``i`` of each batch takes in turn (``make_training_env``).
     """
 
     def __init__(
@@ -206,6 +219,7 @@ class TrainingEnvFactory:
         *,
         num_envs: int = 1,
         seed: int | None = None,
+        variants: Sequence[Mapping[str, object]] = (),
     ) -> None:
         self.simulator = simulator
         self.env_kwargs = dict(env_kwargs)
@@ -213,6 +227,7 @@ class TrainingEnvFactory:
         self.reward_weights = dict(reward_weights)
         self.num_envs = num_envs
         self.seed = seed
+        self.variants = [dict(v) for v in variants]
 
     def seeded(self, seed: int | None) -> TrainingEnvFactory:
         """This factory building simulators seeded from ``seed``."""
@@ -223,6 +238,7 @@ class TrainingEnvFactory:
             self.reward_weights,
             num_envs=self.num_envs,
             seed=seed,
+            variants=self.variants,
         )
 
     def __call__(self):
@@ -233,4 +249,5 @@ class TrainingEnvFactory:
             self.reward_weights,
             num_envs=self.num_envs,
             seed=self.seed,
+            variants=self.variants,
         )

@@ -72,6 +72,7 @@ from .config import (
     plain_mapping,
     resolve_simulator_words,
     uses_demos,
+    variant_kwargs,
 )
 from .envs import TrainingEnvFactory
 from .evaluation import evaluate_groups, plot_success_curve, pool_groups
@@ -138,11 +139,13 @@ def _run_identity(config: FinetuneConfig) -> dict:
 
     The frames of the stages are left out: a run may be resumed with a larger budget.
     """
+    variants = plain_mapping(config.collection.env_variants)
     return {
         "checkpoint": str(config.checkpoint),
         "algorithm": asdict(config.algorithm),
         "curriculum": [dict(s.conditions) for s in config.curriculum.stages],
         "reward_weights": dict(config.reward_weights),
+        **({"env_variants": variants} if variants else {}),  # runs before them had none
     }
 
 
@@ -408,6 +411,7 @@ class _Run:
             conditions,
             config.reward_weights,
             num_envs=config.collection.envs_per_worker,
+            variants=variant_kwargs(config),
         )
         with torch.random.fork_rng(devices=[]):
             return make_collector(

@@ -286,6 +286,36 @@ def test_cross_check_evaluates_before_and_after_on_the_other_simulator_options(
     assert json.loads((tmp_path / "results.json").read_text())["cross_check"] == cross
 
 
+def test_env_variants_give_the_simulators_of_a_batch_their_options_in_turn():
+    mouth = {"soil_options": {"intake": "mouth"}}
+    env = make_training_env(
+        "pile_loader", {}, {"winter_c": 1.0}, REWARDS, num_envs=4, variants=[{}, mouth]
+    )
+    intakes = [m.active.unwrapped.soil.intake for m in env._envs]
+    assert intakes == ["footprint", "mouth", "footprint", "mouth"]
+    with pytest.raises(ValueError, match="multiple of the number of variants"):
+        make_training_env(
+            "pile_loader", {}, {"winter_c": 1.0}, REWARDS, num_envs=3, variants=[{}, mouth]
+        )
+
+
+def test_finetune_collects_on_env_variants_and_resumes_only_with_them(cloned, tmp_path):
+    checkpoint, demos_dir, _ = cloned
+    config = tiny_config(checkpoint, demos_dir, tmp_path, tiny_ppo(), frames=64)
+    variants = [{}, {"soil_options": {"intake": "mouth", "body_resistance": True}}]
+    config = dataclasses.replace(
+        config,
+        collection=CollectionConfig(envs_per_worker=2, env_variants=variants),
+    )
+    results = finetune(config, tmp_path, progress=False)
+    assert results["frames"] == 64
+    state = json.loads((tmp_path / "results.json").read_text())
+    assert state["frames"] == 64
+    plain = dataclasses.replace(config, collection=CollectionConfig(envs_per_worker=2))
+    with pytest.raises(ValueError, match="new run directory"):
+        _Run(plain, tmp_path, progress=False).resume()
+
+
 def test_cross_check_env_is_checked_when_the_config_is_built(cloned, tmp_path):
     checkpoint, demos_dir, _ = cloned
     config = tiny_config(checkpoint, demos_dir, tmp_path, tiny_ppo())
@@ -298,6 +328,13 @@ def test_cross_check_env_is_checked_when_the_config_is_built(cloned, tmp_path):
             dataclasses.replace(
                 config, evaluation=dataclasses.replace(config.evaluation, cross_check_env=bad)
             )
+    for variants, match in (
+        ([{"soil_options": {"intak": "mouth"}}], r"env_variants\[0\]: .*no option.*'intak'"),
+        ([{}, {}, {}], "envs_per_worker .8. must be a multiple of their number .3."),
+        ([{"condition": "summer"}], r"env_variants\[0\]: may not set condition"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            dataclasses.replace(config, collection=CollectionConfig(env_variants=variants))
 
 
 def test_resume_refuses_a_different_run(cloned, tmp_path):
