@@ -117,7 +117,7 @@ def write_pipeline_report(
             f"{config.finetune.time_budget_minutes:g} min). The issue's full-budget run: "
             "docs/results/finetune."
         )
-        cross_check_table(report, results)
+        cross_check_table(report, results, config.finetune.evaluation.final_episodes)
     if (out / "finetune" / "success_curve.png").exists():
         report.image("finetune/success_curve.png", "Success during fine-tuning")
 
@@ -166,17 +166,17 @@ def write_pipeline_report(
     return markdown
 
 
-def cross_check_table(report: Report, results: dict) -> None:
+def cross_check_table(report: Report, results: dict, episodes: int) -> None:
     """The fine-tune's before / after (``best.pt``) per evaluation group, on the training
     simulator and on the cross-check's options (``finetune.evaluation.cross_check_env``),
-    if the run had one."""
+    if the run had one; ``episodes``: its episodes per condition."""
     cross = results.get("cross_check")
     if not cross:
         return
     report.paragraph(
         "Does the gain carry over? The fine-tune's own before / after evaluation "
-        f"({results['before'][next(iter(results['before']))]['episodes']} episodes per group, "
-        "the same starts for both controllers), repeated with the simulator options "
+        f"({episodes} episodes per condition, the same starts for both controllers), "
+        "repeated with the simulator options "
         f"`{json.dumps(cross['env'])}` (finetune.evaluation.cross_check_env). A gain that "
         "shows only on the training options was learned from how the simulator models the "
         "task, not from the task (docs/finetuning.md)."

@@ -311,6 +311,7 @@ def test_finetune_collects_on_env_variants_and_resumes_only_with_them(cloned, tm
     assert results["frames"] == 64
     state = json.loads((tmp_path / "results.json").read_text())
     assert state["frames"] == 64
+    assert _Run(config, tmp_path, progress=False).resume()  # the same variants: resumes
     plain = dataclasses.replace(config, collection=CollectionConfig(envs_per_worker=2))
     with pytest.raises(ValueError, match="new run directory"):
         _Run(plain, tmp_path, progress=False).resume()
