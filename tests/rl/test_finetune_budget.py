@@ -18,7 +18,9 @@ class FakeClock:
         return self.now
 
 
-def budgeted_run(minutes: float, *, every_frames: int, state: dict | None = None):
+def budgeted_run(
+    minutes: float, *, every_frames: int, state: dict | None = None, cross_check: bool = False
+):
     run = finetuning._Run.__new__(finetuning._Run)  # only the budget's attributes
     run.config = SimpleNamespace(
         time_budget_minutes=minutes,
@@ -27,6 +29,7 @@ def budgeted_run(minutes: float, *, every_frames: int, state: dict | None = None
             episodes=5,
             final_episodes=10,
             groups={"winter": ["winter_a", "winter_b"], "summer": ["summer"]},
+            cross_check_env={"soil_options": {"intake": "mouth"}} if cross_check else {},
         ),
     )
     run.state = state or {"wall_s": 0.0, "evaluation_s": 0.0, "before": None, "evaluations": []}
@@ -45,6 +48,13 @@ def test_training_stops_when_only_the_final_evaluations_fit_in_the_budget(monkey
     assert not run._out_of_time()
     clock.now += 1.0  # now the evaluations left would end exactly at the budget
     assert run._out_of_time()
+
+
+def test_the_cross_check_reserves_two_more_final_evaluations():
+    run = budgeted_run(2.0, every_frames=20_000, cross_check=True)
+    run.final_eval_s, run.periodic_eval_s = 18.0, 9.0
+    # final.pt, best.pt, the cloned actor and best.pt on the cross-check, last periodic
+    assert run.reserve_s() == pytest.approx(4 * 18.0 + 9.0)
 
 
 def test_no_budget_never_stops_training(monkeypatch):
