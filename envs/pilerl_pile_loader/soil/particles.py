@@ -95,15 +95,15 @@ driving up to it costs almost nothing.
 So ``pile_mass_kg + bucket_load_kg + spilled_kg`` equals the initial mass at every call.
 The ``payload`` body is left alone: the particles carry their own mass.
 
-**Cutting depth** (``cutting_depth_m`` [m], every ``update``): the heightfield's definition,
-the mean over ``EDGE_SAMPLES`` points across the cutting edge, one heightfield cell ahead
-of it, of how far the pile surface there lies above the edge (0 where it lies below). The
-surface over a point is the top of the highest grain covering it (within
-``COVER_RADIUS_RATIO`` radii, horizontally) that belongs to the pile: resting on the
-ground or the static core through a chain of touching grains, not in the bucket. Grains
-thrown into the air or carried on the machine are not the pile surface: the contact
-solver can throw grains metres high, and the highest grain anywhere across the bucket
-up to 0.25 m ahead, which this reading used to be, then read metres of depth.
+**Cutting depth** (``cutting_depth_m`` [m], as of the last ``update``, measured when
+read): the heightfield's definition, the mean over ``EDGE_SAMPLES`` points across the
+cutting edge, one heightfield cell ahead of it, of how far the pile surface there lies
+above the edge (0 where it lies below). The surface over a point is the top of the highest
+grain covering it (within ``COVER_RADIUS_RATIO`` radii, horizontally) that belongs to the
+pile: resting on the ground or the static core through a chain of touching grains, not in
+the bucket. Grains thrown into the air or carried on the machine are not the pile surface:
+the contact solver can throw grains metres high, and the highest grain anywhere across the
+bucket up to 0.25 m ahead, which this reading used to be, then read metres of depth.
 
 **Fill** (``fill_measure``). ``"count"`` (default): the load's mass over the mass of a
 rated bucket at the pile's bulk density, so a bucket packed as densely as the pile reads
@@ -581,7 +581,8 @@ class ParticleSoil(SoilModel):
         self.initial_mass_kg = self.n_particles * self.particle_mass_kg
         self._settled_qpos = self._settle()
         self._counts = (self.n_particles, 0, 0)
-        self._depth_m = 0.0
+        self._depth_m: float | None = 0.0
+        self._depth_inputs: tuple[np.ndarray, ...] | None = None
         self._edge_offsets_m = (
             np.linspace(-EDGE_SAMPLE_SPAN / 2, EDGE_SAMPLE_SPAN / 2, EDGE_SAMPLES)
             * self.bucket.width_m
@@ -685,9 +686,19 @@ class ParticleSoil(SoilModel):
         self._counts = (self.n_particles - n_bucket - n_spilled, n_bucket, n_spilled)
         self.bucket_load_kg = n_bucket * self.particle_mass_kg
         self.spilled_kg = n_spilled * self.particle_mass_kg
-        self._depth_m = self._edge_depth(positions, in_bucket)
+        # measured when read (once per control step, not at every soil update), from the
+        # grains and the edge as they are now
+        edge = d.site_xpos[machine.cutting_edge_site].copy()
+        self._depth_inputs = (positions.copy(), in_bucket, edge, machine.heading())
+        self._depth_m = None
 
-    def _edge_depth(self, positions: np.ndarray, in_bucket: np.ndarray) -> float:
+    def _edge_depth(
+        self,
+        positions: np.ndarray,
+        in_bucket: np.ndarray,
+        edge: np.ndarray,
+        heading: np.ndarray,
+    ) -> float:
         """Depth [m] of the cutting edge below the pile surface just ahead of it, as the
         heightfield defines it: the mean, over ``EDGE_SAMPLES`` points across the edge
         (``EDGE_SAMPLE_SPAN`` of the bucket width) one heightfield cell
@@ -700,10 +711,11 @@ class ParticleSoil(SoilModel):
         that touch neither the ground nor the core through a chain of touching grains
         (``_resting_grains``: thrown into the air, carried on the machine) are not the
         pile. The rigid rest of the pile around the zone does not count: the machine
-        passes through it."""
-        machine = self.machine
-        edge = self.data.site_xpos[machine.cutting_edge_site]
-        heading = machine.heading()
+        passes through it.
+
+        ``positions`` (N, 3) [m] are the grain centres, ``in_bucket`` (N,) which of them
+        are in the bucket, ``edge`` (3,) [m] the middle of the cutting edge and ``heading``
+        (2,) the machine's horizontal unit heading, all in the world frame."""
         lateral = np.array([-heading[1], heading[0]])
         points = (
             edge[:2] + self.pile.cell_size_m * heading + self._edge_offsets_m[:, None] * lateral
@@ -802,6 +814,8 @@ class ParticleSoil(SoilModel):
     def cutting_depth_m(self) -> float:
         """Depth [m] of the cutting edge below the pile surface just ahead of it, as of the
         last ``update`` (``_edge_depth``; 0 outside the pile)."""
+        if self._depth_m is None:
+            self._depth_m = self._edge_depth(*self._depth_inputs)
         return self._depth_m
 
 
