@@ -12,7 +12,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 import pytest
-from pilerl_pile_loader.soil.particles import EDGE_SAMPLE_SPAN, EDGE_SAMPLES
+from pilerl_pile_loader.soil.particles import ACTIVE_DEPTH_M, EDGE_SAMPLE_SPAN, EDGE_SAMPLES
 
 import pilerl  # noqa: F401
 
@@ -48,15 +48,16 @@ def place_edge_at(env: gym.Env, x_m: float) -> float:
     return sim.soil.cutting_depth_m()
 
 
-def undisturbed_depth(env: gym.Env) -> float:
-    """The heightfield's definition on the pile's undisturbed surface: mean over the sample
-    points across the edge, one cell ahead, of the surface's height above the edge."""
+def undisturbed_depth(env: gym.Env, below_m: float = 0.0) -> float:
+    """The heightfield's definition on the pile's undisturbed surface lowered by
+    ``below_m``: mean over the sample points across the edge, one cell ahead, of the
+    surface's height above the edge."""
     soil = env.unwrapped.soil
     edge = edge_position(env)
     offsets = np.linspace(-EDGE_SAMPLE_SPAN / 2, EDGE_SAMPLE_SPAN / 2, EDGE_SAMPLES)
     y = edge[1] + offsets * soil.bucket.width_m - soil.zone_offset_y_m
     x = np.full_like(y, edge[0] + soil.pile.cell_size_m)
-    surface = soil.pile.surface_height(x, y, soil.repose_angle_rad)
+    surface = soil.pile.surface_height(x, y, soil.repose_angle_rad) - below_m
     return float(np.maximum(surface - edge[2], 0.0).mean())
 
 
@@ -97,6 +98,23 @@ def test_a_grain_in_the_air_ahead_of_the_edge_is_not_the_pile_surface(env):
     np.testing.assert_allclose(soil.particle_positions()[far], target, atol=1e-9)
     soil.update(DT_S)
     assert soil.cutting_depth_m() == depth
+
+
+def test_with_the_grains_gone_the_static_core_is_the_surface(env):
+    env.reset(seed=0)
+    sim = env.unwrapped
+    soil = sim.soil
+    x = soil.pile.toe_x_m + 0.8
+    with_grains = place_edge_at(env, x)
+    qpos = sim.data.qpos[soil._qpos].reshape(-1, 3)
+    qpos[:, 0] -= 20.0  # every grain 20 m back, far from the edge
+    sim.data.qpos[soil._qpos] = qpos.ravel()
+    depth = place_edge_at(env, x)
+    # the core's top lattice sites lie ACTIVE_DEPTH_M below the surface, within a radius
+    expected = undisturbed_depth(env, below_m=ACTIVE_DEPTH_M)
+    assert expected > 0.1
+    assert depth == pytest.approx(expected, abs=soil.radius_m)
+    assert depth < with_grains - 0.3
 
 
 def test_driving_in_raises_the_depth_from_zero_within_the_pile_height(env):

@@ -722,8 +722,8 @@ class ParticleSoil(SoilModel):
         )
         reach = COVER_RADIUS_RATIO * self.radius_m
         surface = np.zeros(EDGE_SAMPLES)
-        if self._core_tree is not None:
-            core = self._core_tree.data
+        if len(self.core):  # the core's spheres sit where reset slid the zone
+            core = self.core
             covers = _horizontal_distance(points, core[:, 0], core[:, 1] + self.zone_offset_y_m)
             covers = covers <= reach
             surface = np.max(np.where(covers, core[:, 2] + self.radius_m, 0.0), axis=1)
