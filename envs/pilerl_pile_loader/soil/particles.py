@@ -95,6 +95,16 @@ driving up to it costs almost nothing.
 So ``pile_mass_kg + bucket_load_kg + spilled_kg`` equals the initial mass at every call.
 The ``payload`` body is left alone: the particles carry their own mass.
 
+**Cutting depth** (``cutting_depth_m`` [m], as of the last ``update``, measured when
+read): the heightfield's definition, the mean over ``EDGE_SAMPLES`` points across the
+cutting edge, one heightfield cell ahead of it, of how far the pile surface there lies
+above the edge (0 where it lies below). The surface over a point is the top of the highest
+grain covering it (within ``COVER_RADIUS_RATIO`` radii, horizontally) that belongs to the
+pile: resting on the ground or the static core through a chain of touching grains, not in
+the bucket. Grains thrown into the air or carried on the machine are not the pile surface:
+the contact solver can throw grains metres high, and the highest grain anywhere across the
+bucket up to 0.25 m ahead, which this reading used to be, then read metres of depth.
+
 **Fill** (``fill_measure``). ``"count"`` (default): the load's mass over the mass of a
 rated bucket at the pile's bulk density, so a bucket packed as densely as the pile reads
 ``packed_bucket_fill`` (the plates leave gaps a grain wide). ``"volume"``: the bulk volume
@@ -114,6 +124,9 @@ from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from .base import SoilModel
 
@@ -172,7 +185,9 @@ SETTLE_CHECK_S = 0.1  # how often settling checks whether the pile sleeps [s]
 # ---- tallies
 FOOTPRINT_MARGIN_M = 0.25  # the footprint reaches this far in front of the toe [m]
 SPILL_HEIGHT_M = 0.5  # off the footprint, a particle centre below this has spilled [m]
-EDGE_WINDOW_AHEAD_M = 0.25  # particles up to this far ahead of the cutting edge set its depth
+EDGE_SAMPLES = 7  # points across the cutting edge where its depth is sampled (as the heightfield)
+EDGE_SAMPLE_SPAN = 0.9  # the sample points span this share of the bucket width (as the heightfield)
+TOUCH_GAP_RATIO = 0.25  # grains touch across a gap of at most this share of their diameter
 VOLUME_GRID_M = 0.01  # grid step of the zone-volume integral [m]
 FILL_MEASURES = ("count", "volume")  # the default first
 VOLUME_CELL_M = 0.02  # column size of the load's bulk volume (fill_measure="volume") [m]
@@ -566,7 +581,13 @@ class ParticleSoil(SoilModel):
         self.initial_mass_kg = self.n_particles * self.particle_mass_kg
         self._settled_qpos = self._settle()
         self._counts = (self.n_particles, 0, 0)
-        self._depth_m = 0.0
+        self._depth_m: float | None = 0.0
+        self._depth_inputs: tuple[np.ndarray, ...] | None = None
+        self._edge_offsets_m = (
+            np.linspace(-EDGE_SAMPLE_SPAN / 2, EDGE_SAMPLE_SPAN / 2, EDGE_SAMPLES)
+            * self.bucket.width_m
+        )
+        self._core_tree = cKDTree(self.core) if len(self.core) else None
         self._bind_volume_columns()
 
     def _settle(self) -> np.ndarray:
@@ -665,26 +686,78 @@ class ParticleSoil(SoilModel):
         self._counts = (self.n_particles - n_bucket - n_spilled, n_bucket, n_spilled)
         self.bucket_load_kg = n_bucket * self.particle_mass_kg
         self.spilled_kg = n_spilled * self.particle_mass_kg
-        self._depth_m = self._edge_depth(positions, in_bucket)
+        # measured when read (once per control step, not at every soil update), from the
+        # grains and the edge as they are now
+        edge = d.site_xpos[machine.cutting_edge_site].copy()
+        self._depth_inputs = (positions.copy(), in_bucket, edge, machine.heading())
+        self._depth_m = None
 
-    def _edge_depth(self, positions: np.ndarray, in_bucket: np.ndarray) -> float:
-        """Depth [m] of the cutting edge below the highest particle top just ahead of it."""
-        machine = self.machine
-        edge = self.data.site_xpos[machine.cutting_edge_site]
-        heading = machine.heading()
+    def _edge_depth(
+        self,
+        positions: np.ndarray,
+        in_bucket: np.ndarray,
+        edge: np.ndarray,
+        heading: np.ndarray,
+    ) -> float:
+        """Depth [m] of the cutting edge below the pile surface just ahead of it, as the
+        heightfield defines it: the mean, over ``EDGE_SAMPLES`` points across the edge
+        (``EDGE_SAMPLE_SPAN`` of the bucket width) one heightfield cell
+        (``pile.cell_size_m``) ahead of it, of the height of the pile surface above the
+        edge (0 where the surface lies below it).
+
+        The surface over a point is the top of the highest grain of the pile or of the
+        static core covering it (centre within ``COVER_RADIUS_RATIO`` radii of the point,
+        horizontally), the ground (0) where none does. Grains in the bucket and grains
+        that touch neither the ground nor the core through a chain of touching grains
+        (``_resting_grains``: thrown into the air, carried on the machine) are not the
+        pile. The rigid rest of the pile around the zone does not count: the machine
+        passes through it.
+
+        ``positions`` (N, 3) [m] are the grain centres, ``in_bucket`` (N,) which of them
+        are in the bucket, ``edge`` (3,) [m] the middle of the cutting edge and ``heading``
+        (2,) the machine's horizontal unit heading, all in the world frame."""
         lateral = np.array([-heading[1], heading[0]])
-        rel = positions[:, :2] - edge[:2]
-        ahead, aside = rel @ heading, rel @ lateral
-        near = (
-            ~in_bucket
-            & (ahead >= -self.radius_m)
-            & (ahead <= EDGE_WINDOW_AHEAD_M)
-            & (np.abs(aside) <= self.bucket.width_m / 2)
+        points = (
+            edge[:2] + self.pile.cell_size_m * heading + self._edge_offsets_m[:, None] * lateral
         )
-        if not near.any():
-            return 0.0
-        top = float(positions[near, 2].max()) + self.radius_m
-        return max(top - float(edge[2]), 0.0)
+        reach = COVER_RADIUS_RATIO * self.radius_m
+        surface = np.zeros(EDGE_SAMPLES)
+        if len(self.core):  # the core's spheres sit where reset slid the zone
+            core = self.core
+            covers = _horizontal_distance(points, core[:, 0], core[:, 1] + self.zone_offset_y_m)
+            covers = covers <= reach
+            surface = np.max(np.where(covers, core[:, 2] + self.radius_m, 0.0), axis=1)
+        covers = (_horizontal_distance(points, positions[:, 0], positions[:, 1]) <= reach) & (
+            ~in_bucket
+        )
+        if covers.any():
+            covers &= self._resting_grains(positions, ~in_bucket)
+            tops = np.max(np.where(covers, positions[:, 2] + self.radius_m, 0.0), axis=1)
+            surface = np.maximum(surface, tops)
+        return float(np.maximum(surface - float(edge[2]), 0.0).mean())
+
+    def _resting_grains(self, positions: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+        """Which grains (N,) rest on the ground or on the static core, directly or through
+        a chain of touching ``candidates`` (grains touch across a gap of at most
+        ``TOUCH_GAP_RATIO`` of their diameter; the ground lies at z = 0)."""
+        r, gap = self.radius_m, TOUCH_GAP_RATIO * 2.0 * self.radius_m
+        index = np.flatnonzero(candidates)
+        grains = positions[index]
+        n = len(index)
+        pairs = cKDTree(grains).query_pairs(2.0 * r + gap, output_type="ndarray")
+        on_base = grains[:, 2] <= r + gap
+        if self._core_tree is not None:
+            in_core_frame = grains - np.array([0.0, self.zone_offset_y_m, 0.0])
+            distance, _ = self._core_tree.query(in_core_frame, distance_upper_bound=2.0 * r + gap)
+            on_base |= np.isfinite(distance)
+        base = np.flatnonzero(on_base)
+        rows = np.concatenate([pairs[:, 0], base])  # node n stands for the ground and core
+        cols = np.concatenate([pairs[:, 1], np.full(len(base), n)])
+        graph = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n + 1, n + 1))
+        _, labels = connected_components(graph, directed=False)
+        resting = np.zeros(len(positions), dtype=bool)
+        resting[index] = labels[:n] == labels[n]
+        return resting
 
     # ------------------------------------------------------------------ tallies
     @property
@@ -739,6 +812,10 @@ class ParticleSoil(SoilModel):
         return self._counts
 
     def cutting_depth_m(self) -> float:
+        """Depth [m] of the cutting edge below the pile surface just ahead of it, as of the
+        last ``update`` (``_edge_depth``; 0 outside the pile)."""
+        if self._depth_m is None:
+            self._depth_m = self._edge_depth(*self._depth_inputs)
         return self._depth_m
 
 
@@ -832,6 +909,11 @@ def _vertical_extent(
     on_edge = (t >= 0.0) & (t <= 1.0) & (np.abs(span) >= 1e-9)
     z_at = z_a + t * (z_b - z_a)
     return np.where(on_edge, z_at, np.inf).min(axis=1), np.where(on_edge, z_at, -np.inf).max(axis=1)
+
+
+def _horizontal_distance(points: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Horizontal distances [m] (P, N) from the points (P, 2) to (x, y) (N,)."""
+    return np.hypot(points[:, :1] - x[None, :], points[:, 1:] - y[None, :])
 
 
 def _inside_polygon(u: np.ndarray, v: np.ndarray, polygon: np.ndarray) -> np.ndarray:
