@@ -118,6 +118,11 @@ class SimulatorBatchEnv(EnvBase):
             self.observation_spec[INFO_KEY] = Unbounded(
                 shape=(*batch, len(self.info_keys)), dtype=torch.float64
             )
+        # what a step hands out, each copied into a fresh tensor: [num_envs, ...] arrays, or
+        # an unbatched env's row 0 (views, so that the copies cost no indexing per step)
+        self._handed_out = {name: self._batch_view(array) for name, array in self._obs.items()}
+        if self.info_keys:
+            self._handed_out[INFO_KEY] = self._batch_view(self._info)
         action = self._envs[0].action_space
         self.action_spec = Bounded(
             torch.as_tensor(action.low).expand(*batch, *action.shape),
@@ -165,15 +170,17 @@ class SimulatorBatchEnv(EnvBase):
         finally:
             self._ending_together = False
 
+    def _batch_view(self, array: np.ndarray) -> np.ndarray:
+        """``array`` [num_envs, ...] in the env's batch shape (a view)."""
+        return array[0] if self._unbatched else array
+
     def _out(self, array: np.ndarray) -> torch.Tensor:
         """A fresh tensor of ``array`` [num_envs, ...] in the env's batch shape."""
-        return torch.from_numpy(array[0].copy() if self._unbatched else array.copy())
+        return torch.from_numpy(self._batch_view(array).copy())
 
     def _observation_td(self) -> dict[str, torch.Tensor]:
-        out = {name: self._out(self._obs[name]) for name in self._names}
-        if self.info_keys:
-            out[INFO_KEY] = self._out(self._info)
-        return out
+        """The sensors (and ``info`` columns), each a fresh tensor."""
+        return {key: torch.from_numpy(array.copy()) for key, array in self._handed_out.items()}
 
     def _new_td(self, entries: dict[str, torch.Tensor]) -> TensorDictBase:
         """A tensordict of ``entries``, made here in the shapes and dtypes of the specs."""
@@ -202,7 +209,7 @@ class SimulatorBatchEnv(EnvBase):
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         n = len(self._envs)
-        actions = tensordict.get("action").detach().cpu().numpy().reshape(n, -1)
+        actions = tensordict.get("action").numpy(force=True).reshape(n, -1)
         stepped = tensordict.get("_step", None)
         if stepped is not None:
             stepped = stepped.reshape(n).tolist()
@@ -221,6 +228,29 @@ class SimulatorBatchEnv(EnvBase):
         entries["truncated"] = self._out(truncated)
         entries["done"] = self._out(terminated | truncated)
         return self._new_td(entries)
+
+    def step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """TorchRL's ``step``. A rollout's step (a plain, unlocked tensordict without
+        names, ``next`` or partial-step mask ``_step``, on an env without a device) gets
+        ``next`` written without TensorDict's checks of a value ``_step`` made in this
+        env's batch size; the rest is TorchRL's ``step`` itself."""
+        if type(tensordict) is not TensorDict or self.device is not None:
+            return super().step(tensordict)
+        entries = tensordict._tensordict
+        if (
+            "next" in entries
+            or "_step" in entries
+            or tensordict.is_locked
+            or tensordict._has_names()
+            or tensordict.device is not None
+        ):
+            return super().step(tensordict)
+        self._assert_tensordict_shape(tensordict)
+        next_tensordict = self._step_proc_data(self._step(tensordict))
+        tensordict._set_str(
+            "next", next_tensordict, validated=True, inplace=False, non_blocking=False
+        )
+        return tensordict
 
     def _step_proc_data(self, next_tensordict: TensorDictBase) -> TensorDictBase:
         """TorchRL's completion of a step's output (the reward viewed in its spec's shape,

@@ -4,6 +4,8 @@ tensordict, and TensorDict's own code wherever the shortcut does not apply."""
 
 from __future__ import annotations
 
+import functools
+
 import torch
 from tensordict import LazyStackedTensorDict, TensorDict, TensorDictBase
 from torchrl.envs import EnvBase
@@ -68,6 +70,24 @@ def test_step_mdp_hands_what_is_not_flat_to_torchrl():
     assert got.get("memory") is not step.get("memory")  # copied, as TorchRL does
 
 
+def torchrl_only(env: EnvBase) -> EnvBase:
+    """``env`` stepping through TorchRL's own ``step``, ``step_mdp`` and ``rollout``."""
+    env.step = functools.partial(EnvBase.step, env)
+    env.rollout = functools.partial(EnvBase.rollout, env)
+    env._cache["_step_mdp"] = _StepMDP(env, exclude_action=False)  # TorchRL's cache
+    assert type(env._step_mdp) is _StepMDP
+    return env
+
+
+def test_a_step_is_torchrl_step():
+    env, reference = make_torchrl_env(seed=8), torchrl_only(make_torchrl_env(seed=8))
+    got, want = drive(env.reset()), drive(reference.reset())
+    for _ in range(3):
+        got, want = env.step(got), reference.step(want)
+        assert_same_tensordict(got, want)
+        got, want = drive(env._step_mdp(got)), drive(reference._step_mdp(want))
+
+
 def test_the_rollout_is_torchrl_rollout_of_the_same_seed():
     for num_envs, kwargs in [
         (1, {"break_when_any_done": False}),  # across an episode's end and reset
@@ -75,9 +95,8 @@ def test_the_rollout_is_torchrl_rollout_of_the_same_seed():
         (3, {"break_when_any_done": False, "break_when_all_done": True}),  # partial steps
     ]:
         env = make_torchrl_env(seed=4, num_envs=num_envs, sensor_noise=0.0)
-        got = env.rollout(130, drive, **kwargs)
-        env.set_seed(4)
-        want = EnvBase.rollout(env, 130, drive, **kwargs)
+        reference = torchrl_only(make_torchrl_env(seed=4, num_envs=num_envs, sensor_noise=0.0))
+        got, want = env.rollout(130, drive, **kwargs), reference.rollout(130, drive, **kwargs)
         assert_same_tensordict(got, want)
         assert got.names[-1] == "time"
 
