@@ -184,7 +184,7 @@ class SimulatorBatchEnv(EnvBase):
 
     def _new_td(self, entries: dict[str, torch.Tensor]) -> TensorDictBase:
         """A tensordict of ``entries``, made here in the shapes and dtypes of the specs."""
-        return TensorDict._new_unsafe(entries, batch_size=self.batch_size)
+        return TensorDict._new_unsafe(entries, batch_size=self.batch_size, nested=False)
 
     def _write_obs(self, index: int, obs: dict, info: dict) -> None:
         for name in self._names:

@@ -58,7 +58,7 @@ class FlatStepMDP:
                 return self._general(tensordict)
             entries[key] = value
         return TensorDict._new_unsafe(
-            entries, batch_size=tensordict.batch_size, device=tensordict.device
+            entries, batch_size=tensordict.batch_size, device=tensordict.device, nested=False
         )
 
 
