@@ -18,6 +18,10 @@ float32.
 A step's tensordict is built from tensors whose shapes and dtypes this class made to
 match its specs, without TensorDict's per-entry validation (``TensorDict._new_unsafe``:
 ~45 us of a ~80 us construction, measured).
+The rollout's bookkeeping around it (TorchRL's ``step`` writing ``next``, ``step_mdp``,
+the stack of the steps at the end) takes shortcuts for such flat tensordicts that give
+TorchRL's results bit for bit (``pilerl.sim.torchrl_steps``; ~110 -> ~60 us per control
+step with one simulator, measured).
 
 ``device`` defaults to ``None``: the simulators run on the CPU, and a TorchRL env given an
 explicit device casts every step's output with ``.to(device)`` (measured: ~0.4 ms of a
