@@ -18,6 +18,10 @@ float32.
 A step's tensordict is built from tensors whose shapes and dtypes this class made to
 match its specs, without TensorDict's per-entry validation (``TensorDict._new_unsafe``:
 ~45 us of a ~80 us construction, measured).
+The rollout's bookkeeping around it (TorchRL's ``step`` writing ``next``, ``step_mdp``,
+the stack of the steps at the end) takes shortcuts for such flat tensordicts that give
+TorchRL's results bit for bit (``pilerl.sim.torchrl_steps``; ~110 -> ~60 us per control
+step with one simulator, measured).
 
 ``device`` defaults to ``None``: the simulators run on the CPU, and a TorchRL env given an
 explicit device casts every step's output with ``.to(device)`` (measured: ~0.4 ms of a
@@ -36,8 +40,11 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase, ParallelEnv
+from torchrl.envs.common import _cache_value
+from torchrl.envs.utils import _StepMDP
 
 from .registry import DEFAULT_SIMULATOR, get_simulator, register_gymnasium_envs
+from .torchrl_steps import FlatStepMDP, StepsToStack, stack_steps
 
 END_FLAGS = ("done", "terminated", "truncated")
 INFO_KEY = "info"  # the ``info_keys`` of a SimulatorBatchEnv, one column each
@@ -115,6 +122,11 @@ class SimulatorBatchEnv(EnvBase):
             self.observation_spec[INFO_KEY] = Unbounded(
                 shape=(*batch, len(self.info_keys)), dtype=torch.float64
             )
+        # what a step hands out, each copied into a fresh tensor: [num_envs, ...] arrays, or
+        # an unbatched env's row 0 (views, so that the copies cost no indexing per step)
+        self._handed_out = {name: self._batch_view(array) for name, array in self._obs.items()}
+        if self.info_keys:
+            self._handed_out[INFO_KEY] = self._batch_view(self._info)
         action = self._envs[0].action_space
         self.action_spec = Bounded(
             torch.as_tensor(action.low).expand(*batch, *action.shape),
@@ -134,6 +146,7 @@ class SimulatorBatchEnv(EnvBase):
         self._ending_together = False
         self._not_ended = np.zeros((num_envs, 1), dtype=bool)  # the flags held back
         self._not_done = torch.zeros(*batch, 1, dtype=torch.bool)  # cloned at every reset
+        self._rollout_steps: StepsToStack | None = None  # within ``rollout``
 
     @property
     def simulators(self) -> tuple[gym.Env, ...]:
@@ -161,19 +174,21 @@ class SimulatorBatchEnv(EnvBase):
         finally:
             self._ending_together = False
 
+    def _batch_view(self, array: np.ndarray) -> np.ndarray:
+        """``array`` [num_envs, ...] in the env's batch shape (a view)."""
+        return array[0] if self._unbatched else array
+
     def _out(self, array: np.ndarray) -> torch.Tensor:
         """A fresh tensor of ``array`` [num_envs, ...] in the env's batch shape."""
-        return torch.from_numpy(array[0].copy() if self._unbatched else array.copy())
+        return torch.from_numpy(self._batch_view(array).copy())
 
     def _observation_td(self) -> dict[str, torch.Tensor]:
-        out = {name: self._out(self._obs[name]) for name in self._names}
-        if self.info_keys:
-            out[INFO_KEY] = self._out(self._info)
-        return out
+        """The sensors (and ``info`` columns), each a fresh tensor."""
+        return {key: torch.from_numpy(array.copy()) for key, array in self._handed_out.items()}
 
     def _new_td(self, entries: dict[str, torch.Tensor]) -> TensorDictBase:
         """A tensordict of ``entries``, made here in the shapes and dtypes of the specs."""
-        return TensorDict._new_unsafe(entries, batch_size=self.batch_size)
+        return TensorDict._new_unsafe(entries, batch_size=self.batch_size, nested=False)
 
     def _write_obs(self, index: int, obs: dict, info: dict) -> None:
         for name in self._names:
@@ -198,7 +213,7 @@ class SimulatorBatchEnv(EnvBase):
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         n = len(self._envs)
-        actions = tensordict.get("action").detach().cpu().numpy().reshape(n, -1)
+        actions = tensordict.get("action").numpy(force=True).reshape(n, -1)
         stepped = tensordict.get("_step", None)
         if stepped is not None:
             stepped = stepped.reshape(n).tolist()
@@ -218,6 +233,29 @@ class SimulatorBatchEnv(EnvBase):
         entries["done"] = self._out(terminated | truncated)
         return self._new_td(entries)
 
+    def step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """TorchRL's ``step``. A rollout's step (a plain, unlocked tensordict without
+        names, ``next`` or partial-step mask ``_step``, on an env without a device) gets
+        ``next`` written without TensorDict's checks of a value ``_step`` made in this
+        env's batch size; the rest is TorchRL's ``step`` itself."""
+        if type(tensordict) is not TensorDict or self.device is not None:
+            return super().step(tensordict)
+        entries = tensordict._tensordict
+        if (
+            "next" in entries
+            or "_step" in entries
+            or tensordict.is_locked
+            or tensordict._has_names()
+            or tensordict.device is not None
+        ):
+            return super().step(tensordict)
+        self._assert_tensordict_shape(tensordict)
+        next_tensordict = self._step_proc_data(self._step(tensordict))
+        tensordict._set_str(
+            "next", next_tensordict, validated=True, inplace=False, non_blocking=False
+        )
+        return tensordict
+
     def _step_proc_data(self, next_tensordict: TensorDictBase) -> TensorDictBase:
         """TorchRL's completion of a step's output (the reward viewed in its spec's shape,
         missing done keys filled in: ~20% of TorchRL's per-step cost, measured), which
@@ -225,6 +263,52 @@ class SimulatorBatchEnv(EnvBase):
         if self.run_type_checks:
             return super()._step_proc_data(next_tensordict)
         return next_tensordict
+
+    def rollout(
+        self,
+        max_steps: int,
+        policy: Callable | None = None,
+        callback: Callable | None = None,
+        **kwargs,
+    ) -> TensorDictBase:
+        """TorchRL's ``rollout``, its steps stacked by ``stack_steps``: the tensordict
+        TensorDict's stack gives, without its checks of every entry of every step (~35 of
+        the ~110 us TorchRL adds to a control step, measured; docs/performance.md).
+
+        TorchRL's ``rollout`` ends by stacking its steps onto ``out`` when given one; this
+        gives it one without entries, sized when the steps are known, so that its stack
+        copies nothing, and stacks the steps here. With ``out``, ``return_contiguous`` or
+        ``set_truncated`` set, it is TorchRL's ``rollout`` unchanged."""
+        if (
+            kwargs.get("out") is not None
+            or kwargs.get("return_contiguous", False) is not False
+            or kwargs.get("set_truncated", False)
+        ):
+            return super().rollout(max_steps, policy, callback, **kwargs)
+        self._rollout_steps = steps = StepsToStack()
+        try:
+            super().rollout(max_steps, policy, callback, out=steps.out, **kwargs)
+        finally:
+            self._rollout_steps = None
+        return stack_steps(steps.steps, steps.dim).refine_names(..., "time")
+
+    def _rollout_nonstop(self, **kwargs) -> list[TensorDictBase]:
+        return self._keep_steps(super()._rollout_nonstop(**kwargs))
+
+    def _rollout_stop_early(self, **kwargs) -> list[TensorDictBase]:
+        return self._keep_steps(super()._rollout_stop_early(**kwargs))
+
+    def _keep_steps(self, steps: list[TensorDictBase]) -> list[TensorDictBase]:
+        if self._rollout_steps is not None:
+            self._rollout_steps.keep(steps, dim=len(self.batch_size))
+        return steps
+
+    @property
+    @_cache_value
+    def _step_mdp(self) -> FlatStepMDP:
+        """TorchRL's ``step_mdp`` (``EnvBase._step_mdp``), on flat tensordicts without
+        TensorDict's per-entry checks (``pilerl.sim.torchrl_steps``)."""
+        return FlatStepMDP(_StepMDP(self, exclude_action=False))
 
     def seed_episodes(self, seeds: Sequence[int]) -> None:
         """Reset sub-env ``i`` with seed ``seeds[i]`` at its next reset."""
