@@ -26,6 +26,8 @@ from pilerl.runs import resolve_checkpoint
 register_configs()
 # budgets that may be raised to continue a finished run from its last.ckpt
 GROWABLE = ("curriculum.stages.*.frames", "time_budget_minutes")
+# settings added after runs were recorded without them: the value those runs ran with
+ADDED = {"collection.env_variants": []}
 
 
 def first_group_success(metrics: dict) -> float:
@@ -52,7 +54,7 @@ def main(config: FinetuneConfig, run: Run) -> dict[str, float]:
         "checkpoint": config.checkpoint,
         "demos": config.demos if uses_demos(config) else None,
     }
-    run.begin(inputs=inputs, growable=GROWABLE, control_hz=config.env.control_hz)
+    run.begin(inputs=inputs, growable=GROWABLE, added=ADDED, control_hz=config.env.control_hz)
     return flat_metrics(finetune(config, run.dir))
 
 

@@ -12,12 +12,14 @@ exist (a pipeline writes them after building its config).
 from __future__ import annotations
 
 import dataclasses
+import functools
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from omegaconf import MISSING
+from omegaconf import MISSING, OmegaConf
 
 from pilerl import checks
 from pilerl.loggers import LoggerConfig
@@ -383,6 +385,11 @@ class CollectionConfig:
                     f"collection.env_variants[{i}]: may not set condition (the curriculum "
                     "chooses the conditions)"
                 )
+            if "control_hz" in variant:
+                raise ValueError(
+                    f"collection.env_variants[{i}]: may not set control_hz (the simulators of "
+                    "a collector step together, one control period)"
+                )
 
 
 @dataclass
@@ -647,15 +654,26 @@ def _env_with(
     try:
         kwargs = config.env.make_kwargs(**plain_mapping(overrides))
         if build:
-            make_gym_env(config.env.simulator, **kwargs).close()
+            _check_builds(config.env.simulator, json.dumps(kwargs, sort_keys=True, default=list))
     except (TypeError, ValueError) as error:
         raise ValueError(f"{where}: {error}") from None
     kwargs.pop("condition")
     return kwargs
 
 
+@functools.lru_cache(maxsize=64)
+def _check_builds(simulator: str, kwargs_json: str) -> None:
+    """Build the simulator once with these keyword arguments (JSON) and close it: a config
+    is built several times (Hydra, ``dataclasses.replace``), the simulator checked once per
+    process (a particle pile takes seconds to build)."""
+    kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in json.loads(kwargs_json).items()}
+    make_gym_env(simulator, **kwargs).close()  # lists as make_kwargs hands them: tuples
+
+
 def plain_mapping(value: Any) -> Any:
     """OmegaConf containers (a Hydra-built config) as plain dicts and lists."""
+    if OmegaConf.is_config(value):
+        return OmegaConf.to_container(value, resolve=True)
     if isinstance(value, Mapping):
         return {str(k): plain_mapping(v) for k, v in value.items()}
     if isinstance(value, list | tuple):

@@ -5,13 +5,16 @@
 1. check the config and the checkpoint (a neural controller) before any work;
 2. build the learner (PPO, TD3+BC or RLPD, plain or residual) around the cloned actor;
 3. resume from ``run_dir/last.ckpt`` if there is one;
-4. evaluate the cloned actor (before), per condition group, with Wilson intervals;
-5. for each curriculum stage: collect in that stage's condition mixture, update,
+4. evaluate the cloned actor (before), per condition group, with Wilson intervals, and
+   on ``evaluation.cross_check_env``'s options if set;
+5. for each curriculum stage: collect in that stage's condition mixture (the simulators
+   of a batch taking ``collection.env_variants`` in turn, if set), update,
    evaluate every ``evaluation.every_frames`` and at the scoop counts ``evaluation.at_scoops``
    (keeping the best actor as ``best.pt``), checkpoint every ``checkpoint_every_frames``,
    stop after ``max_scoops`` scoops;
 6. evaluate ``best.pt`` and the last actor (after) on the before-evaluation's starts,
-   plot success vs frames, write ``results.json``.
+   and ``best.pt`` on the cross-check's options; plot success vs frames, write
+   ``results.json``.
 
 Files in ``run_dir``:
 
@@ -23,7 +26,8 @@ Files in ``run_dir``:
 | ``final.pt`` | actor after the last update |
 | ``success_curve.png`` | success vs frames per group with Wilson bands |
 | ``evaluations.json`` | every periodic evaluation |
-| ``results.json`` | before / after per group, frames, scoops (failed, tipped), wall time |
+| ``results.json`` | before / after per group, frames, scoops (failed, tipped), wall time, |
+|  | ``cross_check``: before / after on ``evaluation.cross_check_env``'s options |
 | ``finetune/`` | TorchRL CSV log of every batch |
 | ``videos/`` | one episode per group at each evaluation (``evaluation.video``) |
 
@@ -104,6 +108,7 @@ RUN_FILES = [
     "done.json",
 ]
 SCOOP_FIELDS = ("scoops", "failed_scoops", "tipped_scoops")  # counted from the collected batches
+CROSS_CHECK_BEFORE = "cross_check_before"  # progress entry, only with a cross-check
 SEGMENT_SEED_STRIDE = 1_000_003  # segment seed = seed * stride + batches so far
 VIDEO_SIZE = (240, 320)  # (height, width) of evaluation videos [px]
 
@@ -197,6 +202,8 @@ class _Run:
             "evaluation_s": 0.0,
             "wall_s": 0.0,
         }
+        if config.evaluation.cross_check_env:
+            self.state[CROSS_CHECK_BEFORE] = None  # the cloned actor there (cross_check_before)
         self.logger = make_logger(config.logger.backend, run_dir, experiment_name=LOG_NAME)
         # the time budget: a deadline for the whole invocation, final evaluations included
         self.deadline: float | None = None
@@ -217,6 +224,13 @@ class _Run:
             _trim_scalar_logs(self.run_dir / LOG_NAME, after_frames=None)
             return False
         progress, learner_state, rng_state = load_run(path)
+        # a cross-check may be added to, changed in or dropped from a resumed run: the
+        # cloned actor's is kept only where it was made with the options asked for now
+        saved_cross_check = progress.pop(CROSS_CHECK_BEFORE, None)
+        if CROSS_CHECK_BEFORE in self.state:
+            wanted = plain_mapping(self.config.evaluation.cross_check_env)
+            same = saved_cross_check is not None and saved_cross_check.get("env") == wanted
+            progress[CROSS_CHECK_BEFORE] = saved_cross_check if same else None
         progress = _checked_progress(path, progress, self.state)
         identity = self.state["identity"]
         if progress["identity"] != identity:
@@ -392,8 +406,10 @@ class _Run:
         final evaluations of ``final.pt`` and ``best.pt`` (and the cross-check's two), as
         long as they took so far."""
         periodic = _periodic(self.config)
-        finals = (2 if periodic else 1) + 2 * bool(self.config.evaluation.cross_check_env)
-        return finals * self.final_eval_s + periodic * self.periodic_eval_s
+        cross_check = self.state.get(CROSS_CHECK_BEFORE)  # best.pt's takes about as long
+        cross_check_s = cross_check["seconds"] if cross_check else 0.0
+        finals = 2 if periodic else 1
+        return finals * self.final_eval_s + periodic * self.periodic_eval_s + cross_check_s
 
     def _out_of_time(self) -> bool:
         """Whether training must stop to leave time for the evaluations that follow."""
@@ -612,40 +628,61 @@ class _Run:
         log.info("after (best.pt): %s", _rates(after_best))
         return metrics
 
-    def cross_check(self, after_best: dict) -> dict:
-        """The cloned actor and ``best.pt`` again, on the simulator with
-        ``evaluation.cross_check_env`` (same episodes and starts as the final evaluation);
-        logs each group's gain on both and warns where the gain does not carry over."""
+    def evaluate_cross_check_before(self) -> None:
+        """The cloned actor on ``evaluation.cross_check_env``'s options (same episodes and
+        starts as the final evaluation), once, before training: it does not depend on
+        training, and its time is what the time budget keeps for ``best.pt``'s."""
+        if CROSS_CHECK_BEFORE not in self.state or self.state[CROSS_CHECK_BEFORE] is not None:
+            return
         evaluation = self.config.evaluation
-        kwargs = cross_check_kwargs(self.config)
-        before, before_conditions, *_ = self._evaluate(
+        started = time.perf_counter()
+        groups, per_condition, *_ = self._evaluate(
             self.config.checkpoint,
             episodes=evaluation.final_episodes,
             seed=evaluation.final_seed,
-            env_kwargs=kwargs,
+            env_kwargs=cross_check_kwargs(self.config),
         )
+        self.state[CROSS_CHECK_BEFORE] = {
+            "env": plain_mapping(evaluation.cross_check_env),
+            "groups": groups,
+            "conditions": per_condition,
+            "seconds": time.perf_counter() - started,
+        }
+        log.info("before, cross-check: %s", _rates(groups))
+
+    def cross_check(self, after_best: dict) -> dict:
+        """``best.pt`` on ``evaluation.cross_check_env``'s options beside the cloned actor's
+        (``evaluate_cross_check_before``); logs each group's change of success and fill on
+        both and warns where a success gain does not carry over."""
+        evaluation = self.config.evaluation
+        self.evaluate_cross_check_before()  # made before training (here if it was not)
+        before = self.state[CROSS_CHECK_BEFORE]
         after, after_conditions, *_ = self._evaluate(
             self.run_dir / BEST_ACTOR,
             episodes=evaluation.final_episodes,
             seed=evaluation.final_seed,
-            env_kwargs=kwargs,
+            env_kwargs=cross_check_kwargs(self.config),
         )
         for group in after:
-            here = after_best[group]["success_rate"] - self.state["before"][group]["success_rate"]
-            there = after[group]["success_rate"] - before[group]["success_rate"]
+            old, new = self.state["before"][group], after_best[group]
+            old_there, new_there = before["groups"][group], after[group]
+            here = new["success_rate"] - old["success_rate"]
+            there = new_there["success_rate"] - old_there["success_rate"]
             text = (
-                f"cross-check {group}: fine-tuning changed success by {here:+.0%} here and by "
-                f"{there:+.0%} with {dict(evaluation.cross_check_env)}"
+                f"cross-check {group}: fine-tuning changed success by {here:+.0%} (fill "
+                f"{old['fill_mean']:.2f} -> {new['fill_mean']:.2f}) here and by {there:+.0%} "
+                f"(fill {old_there['fill_mean']:.2f} -> {new_there['fill_mean']:.2f}) with "
+                f"{before['env']}"
             )
             if here > 0 and there < here / 2:
-                log.warning("%s: the gain does not carry over (docs/finetuning.md)", text)
+                log.warning("%s: the success gain does not carry over (docs/finetuning.md)", text)
             else:
                 log.info(text)
         return {
-            "env": plain_mapping(evaluation.cross_check_env),
-            "before": before,
+            "env": before["env"],
+            "before": before["groups"],
             "after_best": after,
-            "conditions": {"before": before_conditions, "after_best": after_conditions},
+            "conditions": {"before": before["conditions"], "after_best": after_conditions},
         }
 
 
@@ -752,6 +789,7 @@ def finetune(config: FinetuneConfig, run_dir: str | Path, *, progress: bool = Tr
     run.resume()
     run.start_clock()  # the budget covers the evaluations before and after training too
     run.evaluate_before()
+    run.evaluate_cross_check_before()
     if _periodic(config) and not run.state["evaluations"]:
         run.evaluate_now()  # the cloned actor: the curve's first point and best.pt so far
         run.save()

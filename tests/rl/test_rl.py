@@ -271,9 +271,10 @@ def test_cross_check_evaluates_before_and_after_on_the_other_simulator_options(
 
     monkeypatch.setattr(finetuning, "evaluate_groups", recording)
     results = finetune(config, tmp_path, progress=False)
-    # before, after (final.pt = best.pt without periodic evaluations), then the cross-check's
-    # before and after on the other soil
-    assert soils == [{}, {}, other_soil["soil_options"], other_soil["soil_options"]]
+    # before, and before on the other soil (both ahead of training), after (final.pt =
+    # best.pt without periodic evaluations), then after on the other soil
+    mouth = other_soil["soil_options"]
+    assert soils == [{}, mouth, {}, mouth]
     cross = results["cross_check"]
     assert cross["env"] == other_soil
     assert cross["before"]["winter"]["episodes"] == 1
@@ -299,8 +300,20 @@ def test_env_variants_give_the_simulators_of_a_batch_their_options_in_turn():
         )
 
 
-def test_finetune_collects_on_env_variants_and_resumes_only_with_them(cloned, tmp_path):
+def test_finetune_collects_on_env_variants_and_resumes_only_with_them(
+    cloned, tmp_path, monkeypatch
+):
     checkpoint, demos_dir, _ = cloned
+    import pilerl.rl.envs as rl_envs
+
+    built = []  # the soil options of every training simulator built
+    original = rl_envs.ConditionMixtureEnv.__init__
+
+    def recording(self, simulator, env_kwargs, *args, **kwargs):
+        built.append(dict(env_kwargs["soil_options"]))
+        original(self, simulator, env_kwargs, *args, **kwargs)
+
+    monkeypatch.setattr(rl_envs.ConditionMixtureEnv, "__init__", recording)
     config = tiny_config(checkpoint, demos_dir, tmp_path, tiny_ppo(), frames=64)
     variants = [{}, {"soil_options": {"intake": "mouth", "body_resistance": True}}]
     config = dataclasses.replace(
@@ -309,6 +322,7 @@ def test_finetune_collects_on_env_variants_and_resumes_only_with_them(cloned, tm
     )
     results = finetune(config, tmp_path, progress=False)
     assert results["frames"] == 64
+    assert built == [{}, variants[1]["soil_options"]]  # the collector's two simulators
     state = json.loads((tmp_path / "results.json").read_text())
     assert state["frames"] == 64
     assert _Run(config, tmp_path, progress=False).resume()  # the same variants: resumes
@@ -333,6 +347,7 @@ def test_cross_check_env_is_checked_when_the_config_is_built(cloned, tmp_path):
         ([{"soil_options": {"intak": "mouth"}}], r"env_variants\[0\]: .*no option.*'intak'"),
         ([{}, {}, {}], "envs_per_worker .8. must be a multiple of their number .3."),
         ([{"condition": "summer"}], r"env_variants\[0\]: may not set condition"),
+        ([{"control_hz": 10.0}], r"env_variants\[0\]: may not set control_hz"),
     ):
         with pytest.raises(ValueError, match=match):
             dataclasses.replace(config, collection=CollectionConfig(env_variants=variants))
@@ -354,7 +369,7 @@ def run_finetune_recipe(*overrides: str) -> subprocess.CompletedProcess:
 
 def test_finetune_recipe_td3bc_smoke_run_over_two_curriculum_stages(cloned, tmp_path):
     checkpoint, demos_dir, _ = cloned
-    result = run_finetune_recipe(
+    overrides = (
         "algorithm=td3bc",
         f"checkpoint={checkpoint}",
         f"demos={demos_dir}",
@@ -369,8 +384,8 @@ def test_finetune_recipe_td3bc_smoke_run_over_two_curriculum_stages(cloned, tmp_
         "evaluation.every_frames=0",
         "evaluation.episodes=1",
         "evaluation.final_episodes=1",
-        f"hydra.run.dir={tmp_path}",
     )
+    result = run_finetune_recipe(*overrides, f"hydra.run.dir={tmp_path}")
     assert result.returncode == 0, result.stderr[-3000:]
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert metrics["frames"] == 128
@@ -380,6 +395,15 @@ def test_finetune_recipe_td3bc_smoke_run_over_two_curriculum_stages(cloned, tmp_
     trained = actor_policy(load_actor(tmp_path / "final.pt")).state_dict()
     cloned_weights = actor_policy(load_actor(checkpoint)).state_dict()
     assert any(not torch.equal(trained[k], cloned_weights[k]) for k in trained)
+
+    # a run recorded before collection.env_variants existed is still this run: skipped
+    record = json.loads((tmp_path / "run.json").read_text())
+    assert record["settings"].pop("collection.env_variants") == []
+    (tmp_path / "run.json").write_text(json.dumps(record))
+    again = run_finetune_recipe(*overrides, f"hydra.run.dir={tmp_path}")
+    assert again.returncode == 0 and "already finished" in again.stderr + again.stdout, (
+        again.stderr[-2000:]
+    )
 
 
 # ---------------------------------------------------------------- bad input, configs
