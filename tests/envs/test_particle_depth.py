@@ -12,7 +12,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 import pytest
-from pilerl_pile_loader.soil.particles import ACTIVE_DEPTH_M, EDGE_SAMPLE_SPAN, EDGE_SAMPLES
+from pilerl_pile_loader.soil.particles import EDGE_SAMPLE_SPAN, EDGE_SAMPLES
 
 import pilerl  # noqa: F401
 
@@ -110,8 +110,8 @@ def test_with_the_grains_gone_the_static_core_is_the_surface(env):
     qpos[:, 0] -= 20.0  # every grain 20 m back, far from the edge
     sim.data.qpos[soil._qpos] = qpos.ravel()
     depth = place_edge_at(env, x)
-    # the core's top lattice sites lie ACTIVE_DEPTH_M below the surface, within a radius
-    expected = undisturbed_depth(env, below_m=ACTIVE_DEPTH_M)
+    # the core's top lattice sites lie the active depth below the surface, within a radius
+    expected = undisturbed_depth(env, below_m=soil.active_depth_m)
     assert expected > 0.1
     assert depth == pytest.approx(expected, abs=soil.radius_m)
     assert depth < with_grains - 0.3

@@ -124,9 +124,6 @@ from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from .base import SoilModel
 
@@ -587,6 +584,8 @@ class ParticleSoil(SoilModel):
             np.linspace(-EDGE_SAMPLE_SPAN / 2, EDGE_SAMPLE_SPAN / 2, EDGE_SAMPLES)
             * self.bucket.width_m
         )
+        from scipy.spatial import cKDTree  # here: the heightfield's users never pay its import
+
         self._core_tree = cKDTree(self.core) if len(self.core) else None
         self._bind_volume_columns()
 
@@ -740,6 +739,10 @@ class ParticleSoil(SoilModel):
         """Which grains (N,) rest on the ground or on the static core, directly or through
         a chain of touching ``candidates`` (grains touch across a gap of at most
         ``TOUCH_GAP_RATIO`` of their diameter; the ground lies at z = 0)."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+        from scipy.spatial import cKDTree
+
         r, gap = self.radius_m, TOUCH_GAP_RATIO * 2.0 * self.radius_m
         index = np.flatnonzero(candidates)
         grains = positions[index]
