@@ -160,6 +160,15 @@ GRAIN_CONTACT_MODULUS_PA = 5e7
 # pyramidal cone bounced off at 500 Hz (a softer contact gets a longer time constant
 # instead); nearer to 1 the solver hardly converges (refused)
 CONTACT_IMPEDANCE_RANGE = (0.7, 0.999)
+# the bucket plates' contacts by default: MuJoCo's default solref / solimp at this steel
+# friction angle (dry gravel's, summer's: where the default contacts were chosen and
+# measured); at any other steel friction the impedance makes up for the pyramidal cone's
+# 2 / (mu^2 (1 + mu^2)) stiffening (``steel_contact``), so that a grain's normal contact
+# with the plates is as stiff whatever the friction (docs/soil_models.md, "Grains thrown
+# out of the pile on low-friction steel")
+STEEL_REFERENCE_FRICTION_ANGLE_DEG = 25.0
+MUJOCO_SOLREF = (0.02, 1.0)  # MuJoCo's default solref: time constant [s], damping ratio
+MUJOCO_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)  # MuJoCo's default solimp
 SOLIMP_WIDTH_M = 0.001  # MuJoCo's default (unused: the impedance is flat, d0 = dmax)
 PARTICLE_PRIORITY = 2  # > ground's 1: particle friction governs particle-ground contacts
 BUCKET_PRIORITY = 3  # > particles': steel friction tan(delta) governs bucket contacts
@@ -408,7 +417,11 @@ class ParticleSoil(SoilModel):
         the mass-normalised contacts)."""
         if self.contact_modulus_pa is None:
             self.grain_stiffness_n_m = None
-            return {"solref": [self.contact_timeconst_s, 1.0]}, {}
+            solref, solimp = steel_contact(tool_friction)
+            return {"solref": [self.contact_timeconst_s, 1.0]}, {
+                "solref": solref,
+                "solimp": solimp,
+            }
         self.grain_stiffness_n_m = self.contact_modulus_pa * 2.0 * self.radius_m
         contacts = []
         for mu in (friction, tool_friction):
@@ -850,6 +863,43 @@ def contact_parameters(
             "constant: choose a lower contact_modulus_pa or a coarser pile"
         )
     return timeconst_s, impedance
+
+
+def pyramid_stiffening(friction: float) -> float:
+    """The factor c = 2 / (mu^2 (1 + mu^2)) by which MuJoCo's pyramidal friction cone
+    stiffens a contact of sliding ``friction`` mu against the elliptic cone's (its
+    regulariser scaled by 2 mu^2 over the four edges; ``contact_parameters``)."""
+    return 2.0 / (friction**2 * (1.0 + friction**2))
+
+
+def steel_contact(friction: float) -> tuple[list[float], list[float]]:
+    """The bucket plates' default ``solref`` and ``solimp`` for a steel friction ``friction``
+    (tan of the material's soil-steel friction angle).
+
+    At ``STEEL_REFERENCE_FRICTION_ANGLE_DEG`` they are MuJoCo's defaults (``MUJOCO_SOLREF``,
+    ``MUJOCO_SOLIMP``). With the pyramidal cone a contact's static compliance is
+    (1 - d) tau^2 / (c m) (``contact_parameters``), c = ``pyramid_stiffening(mu)``: on
+    smoother steel MuJoCo's defaults would make the grain-steel contact c(mu) / c(mu_ref)
+    times stiffer (3.4x at winter_c's tan 15 deg), nearly a hard constraint (effective
+    impedance 0.998), which the pile's capped CG iterations leave unresolved: grains
+    sank a whole radius into the 24 mm plates and shot out at tens of m/s
+    (docs/soil_models.md). Here the impedance's complement (1 - d) is scaled by
+    c(mu) / c(mu_ref) instead, so the compliance is the reference's; where that takes
+    ``dmin`` below ``CONTACT_IMPEDANCE_RANGE[0]`` the time constant grows instead (as in
+    ``contact_parameters``). ``dmax`` is at most ``CONTACT_IMPEDANCE_RANGE[1]``."""
+    if not friction > 0.0:
+        raise ValueError(f"steel_contact: friction must be > 0, got {friction!r}")
+    reference = math.tan(math.radians(STEEL_REFERENCE_FRICTION_ANGLE_DEG))
+    scale = pyramid_stiffening(friction) / pyramid_stiffening(reference)
+    timeconst_s, dampratio = MUJOCO_SOLREF
+    dmin, dmax, width, midpoint, power = MUJOCO_SOLIMP
+    low, high = CONTACT_IMPEDANCE_RANGE
+    if scale == 1.0:
+        return list(MUJOCO_SOLREF), list(MUJOCO_SOLIMP)
+    longer = timeconst_s * math.sqrt(max(1.0, scale * (1.0 - dmin) / (1.0 - low)))
+    factor = scale * (timeconst_s / longer) ** 2
+    impedances = [min(1.0 - (1.0 - d) * factor, high) for d in (dmin, dmax)]
+    return [longer, dampratio], [*impedances, width, midpoint, power]
 
 
 def _add_bevel(spec: mujoco.MjSpec) -> None:
