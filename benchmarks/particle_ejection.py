@@ -21,11 +21,17 @@ simulated seconds per CPU second, whole episodes.
 
     python benchmarks/particle_ejection.py                      # summer, winter_a, winter_c
     python benchmarks/particle_ejection.py --conditions winter_c --seeds 2
+    python benchmarks/particle_ejection.py --conditions summer --seeds 1 \
+        --overrides '{"material": {"tool_friction_angle_deg": 15.0}}'   # what it depends on
+
+``--overrides``: condition overrides (JSON, as the env's ``condition_overrides``) for
+every row, to tell which of a condition's differences the throwing depends on.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import time
 
@@ -44,7 +50,9 @@ THROWN_SPEED_M_S = 5.0
 VARIANTS = ("mujoco", "current")
 
 
-def make_env(condition: str, variant: str, mouth_grains: float) -> gym.Env:
+def make_env(
+    condition: str, variant: str, mouth_grains: float, overrides: dict | None = None
+) -> gym.Env:
     """The particle env; ``variant="mujoco"`` puts MuJoCo's default contacts back on the
     bucket plates."""
     env = gym.make(
@@ -53,6 +61,7 @@ def make_env(condition: str, variant: str, mouth_grains: float) -> gym.Env:
         soil="particles",
         sensor_noise=0.0,
         soil_options={"mouth_grains": mouth_grains},
+        condition_overrides=overrides,
     )
     if variant == "mujoco":
         model = env.unwrapped.model
@@ -112,18 +121,22 @@ def main() -> None:
     parser.add_argument("--conditions", nargs="+", default=["summer", "winter_a", "winter_c"])
     parser.add_argument("--seeds", type=int, default=4, help="seeded scoops per row")
     parser.add_argument("--mouth-grains", type=float, default=6.0)
+    parser.add_argument("--overrides", type=json.loads, default=None, help="condition overrides")
     args = parser.parse_args()
     seeds = list(range(args.seeds))
     header = (
         f"{'condition':>9} {'steel':>8} {'thrown':>6} {'v max':>6} {'z max':>6} "
         f"{'plate mm':>8} {'ground mm':>9} {'fill':>6} {'rt':>5}  fills | v max | z max per seed"
     )
-    print(f"mouth grains {args.mouth_grains}, seeds {seeds[0]}-{seeds[-1]}, nominal expert")
+    print(
+        f"mouth grains {args.mouth_grains}, seeds {seeds[0]}-{seeds[-1]}, nominal expert, "
+        f"overrides {args.overrides}"
+    )
     print(header)
     print("-" * len(header))
     for condition in args.conditions:
         for variant in VARIANTS:
-            env = make_env(condition, variant, args.mouth_grains)
+            env = make_env(condition, variant, args.mouth_grains, args.overrides)
             runs = [scoop(env, seed) for seed in seeds]
             env.close()
             thrown = sum(r["v_max"] > THROWN_SPEED_M_S for r in runs)

@@ -34,19 +34,23 @@ the pyramidal friction cone: ``contact_parameters``). By default (``contact_modu
 the grains, core and walls have ``tau`` = ``CONTACT_TIMECONST_S`` = 2 physics steps (0.004 s
 at 500 Hz, the stiffest MuJoCo integrates stably) and MuJoCo's default impedance, and the
 bucket plates, whose contact priority outranks the grains' so that their ``solref`` /
-``solimp`` govern bucket-grain contacts, keep MuJoCo's defaults (0.02 s): under the same
-stress the lighter grains of a finer pile sink deeper (~1/D^2 of their diameter), into
-each other and into the steel. With 0.01 s grain contacts the fill fell with resolution
-(docs/soil_models.md). The option ``contact_modulus_pa`` gives every grain contact a
-stiffness set by the material and proportional to the grain diameter D instead
-(``contact_modulus_pa`` x D against steel, the core and the walls, half that between two
-grains: a packing's modulus is then the same at every resolution), for the bucket plates
-too: ``tau`` stays, the impedance carries the resolution, ``1 - d = c m / (K tau^2)``
-(below an impedance of 0.7 the time constant gets longer instead). Measured, it made the
-finer piles fill less, not converge: the soft bucket contacts had been letting fine grains
-sink into the cutting edge (docs/soil_models.md), so it is not the default. The slump test
-reads the same with the default contacts at 0.01 s and 0.004 s (a released block of grains
-settles at 31 and 33 deg mean angle).
+``solimp`` govern bucket-grain contacts, have MuJoCo's defaults (0.02 s) at dry gravel's
+steel friction (tan 25 deg) and the same compliance at every other (``steel_contact``:
+the pyramidal cone stiffens a contact by 2 / (mu^2 (1 + mu^2)), 3.4x on winter_c's
+tan 15 deg with MuJoCo's defaults, nearly a hard constraint that the capped CG left
+unresolved: grains sank a whole radius into the plates and were thrown out of the pile at
+tens of m/s). Under the same stress the lighter grains of a finer pile sink deeper (~1/D^2
+of their diameter), into each other and into the steel. With 0.01 s grain contacts the
+fill fell with resolution (docs/soil_models.md). The option ``contact_modulus_pa`` gives
+every grain contact a stiffness set by the material and proportional to the grain diameter
+D instead (``contact_modulus_pa`` x D against steel, the core and the walls, half that
+between two grains: a packing's modulus is then the same at every resolution), for the
+bucket plates too: ``tau`` stays, the impedance carries the resolution,
+``1 - d = c m / (K tau^2)`` (below an impedance of 0.7 the time constant gets longer
+instead). Measured, it made the finer piles fill less, not converge: the soft bucket
+contacts had been letting fine grains sink into the cutting edge (docs/soil_models.md), so
+it is not the default. The slump test reads the same with the default contacts at 0.01 s
+and 0.004 s (a released block of grains settles at 31 and 33 deg mean angle).
 
 **Digging zone.** Only the part of the pile the bucket reaches is made of moving grains:
 up to ``PARTICLE_ZONE_DEPTH_M`` behind the toe, ``PARTICLE_ZONE_HALF_WIDTH_M`` either side
@@ -245,7 +249,8 @@ class ParticleSoil(SoilModel):
         - ``contact_modulus_pa``: ``None`` (default): MuJoCo's mass-normalised contacts
           (default impedance; under a load F a grain of mass m sinks about (F / m) tau^2,
           so the lighter grains of a finer pile sink deeper), the bucket's contacts at
-          MuJoCo's defaults. A number: a grain's normal contact stiffness against steel
+          MuJoCo's defaults made as compliant at every steel friction as at tan 25 deg
+          (``steel_contact``). A number: a grain's normal contact stiffness against steel
           per metre of its diameter [N/m per m] (between two grains half that), the same
           at every resolution, for the bucket plates too (module docstring;
           ``GRAIN_CONTACT_MODULUS_PA`` is the value docs/soil_models.md measured: it
