@@ -21,8 +21,11 @@ from pilerl_pile_loader.soil.particles import (
     CONE,
     CONTACT_IMPEDANCE_RANGE,
     GRAIN_CONTACT_MODULUS_PA,
+    MUJOCO_SOLIMP,
+    MUJOCO_SOLREF,
     ParticleSoil,
     contact_parameters,
+    steel_contact,
 )
 
 import pilerl  # noqa: F401
@@ -169,6 +172,37 @@ def test_mass_normalised_contacts_are_the_default_and_leave_the_bucket_at_mujoco
     assert soil.grain_stiffness_n_m is None
     np.testing.assert_allclose(spec.geom("bucket_floor").solref, [0.02, 1.0])
     np.testing.assert_allclose(spec.body("particle_0").first_geom().solref, [0.004, 1.0])
+
+
+def test_default_steel_contacts_are_as_stiff_whatever_the_steel_friction():
+    """The phenomenon behind grains thrown out of the pile on ice (docs/soil_models.md):
+    with MuJoCo's default contacts the pyramidal cone made a grain's contact with the
+    bucket's steel 3.4 times stiffer on winter_c's tan 15 deg than on summer's tan 25 deg,
+    nearly a hard constraint, which the pile's capped solver left unresolved. A grain now
+    sinks as far into the plate under the same force per kilogram (the contacts stay
+    mass-normalised) on every material, summer's being MuJoCo's defaults."""
+    acceleration = 1000.0  # [m/s^2]: ~1.5 kN on a 1.5 kg grain, a squeeze under the bucket
+    sinks = {}
+    for condition in ("summer", "winter_a", "winter_c", "winter_d"):
+        soil, spec = _soil_spec(COARSE, condition, contact_modulus_pa=None)
+        sinks[condition] = _sink_m(soil, spec, "steel", acceleration * soil.particle_mass_kg)
+    for condition, sink in sinks.items():
+        assert sink == pytest.approx(sinks["summer"], rel=0.02), condition
+    # about 2.6 mm: MuJoCo's default impedance (1 - 0.95) x (0.02 s)^2 x 1000 m/s^2 / c,
+    # c = 7.6 for tan 25 deg
+    assert sinks["summer"] == pytest.approx(0.05 * 0.02**2 * 1000.0 / 7.6, rel=0.1)
+    np.testing.assert_allclose(steel_contact(np.tan(np.radians(25.0)))[1], MUJOCO_SOLIMP)
+    for angle_deg in (5.0, 10.0, 15.0, 22.0, 30.0, 40.0):
+        solref, solimp = steel_contact(np.tan(np.radians(angle_deg)))
+        assert solref[0] >= MUJOCO_SOLREF[0]
+        low, high = CONTACT_IMPEDANCE_RANGE
+        assert low - 1e-12 <= solimp[0] <= solimp[1] <= high
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.3, float("nan")])
+def test_impossible_steel_friction_fails_naming_the_function(bad):
+    with pytest.raises(ValueError, match="steel_contact"):
+        steel_contact(bad)
 
 
 @pytest.mark.parametrize("bad", [1e3, 1e12, float("nan"), True, "5e7"])

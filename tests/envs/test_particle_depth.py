@@ -79,8 +79,9 @@ def test_depth_is_zero_off_the_pile_and_follows_its_face(env):
 
 
 def test_a_grain_in_the_air_ahead_of_the_edge_is_not_the_pile_surface(env):
-    """The contact solver can throw grains metres high (winter_c, default pile: 48 m); one
-    passing over the edge read as metres of cutting depth."""
+    """The contact solver could throw grains metres high (winter_c, default pile: 48 m,
+    before the bucket plates' contacts were fixed); one passing over the edge read as
+    metres of cutting depth."""
     env.reset(seed=0)
     sim = env.unwrapped
     soil = sim.soil

@@ -34,19 +34,23 @@ the pyramidal friction cone: ``contact_parameters``). By default (``contact_modu
 the grains, core and walls have ``tau`` = ``CONTACT_TIMECONST_S`` = 2 physics steps (0.004 s
 at 500 Hz, the stiffest MuJoCo integrates stably) and MuJoCo's default impedance, and the
 bucket plates, whose contact priority outranks the grains' so that their ``solref`` /
-``solimp`` govern bucket-grain contacts, keep MuJoCo's defaults (0.02 s): under the same
-stress the lighter grains of a finer pile sink deeper (~1/D^2 of their diameter), into
-each other and into the steel. With 0.01 s grain contacts the fill fell with resolution
-(docs/soil_models.md). The option ``contact_modulus_pa`` gives every grain contact a
-stiffness set by the material and proportional to the grain diameter D instead
-(``contact_modulus_pa`` x D against steel, the core and the walls, half that between two
-grains: a packing's modulus is then the same at every resolution), for the bucket plates
-too: ``tau`` stays, the impedance carries the resolution, ``1 - d = c m / (K tau^2)``
-(below an impedance of 0.7 the time constant gets longer instead). Measured, it made the
-finer piles fill less, not converge: the soft bucket contacts had been letting fine grains
-sink into the cutting edge (docs/soil_models.md), so it is not the default. The slump test
-reads the same with the default contacts at 0.01 s and 0.004 s (a released block of grains
-settles at 31 and 33 deg mean angle).
+``solimp`` govern bucket-grain contacts, have MuJoCo's defaults (0.02 s) at dry gravel's
+steel friction (tan 25 deg) and the same compliance at every other (``steel_contact``:
+the pyramidal cone stiffens a contact by 2 / (mu^2 (1 + mu^2)), 3.4x on winter_c's
+tan 15 deg with MuJoCo's defaults, nearly a hard constraint that the capped CG left
+unresolved: grains sank a whole radius into the plates and were thrown out of the pile at
+tens of m/s). Under the same stress the lighter grains of a finer pile sink deeper (~1/D^2
+of their diameter), into each other and into the steel. With 0.01 s grain contacts the
+fill fell with resolution (docs/soil_models.md). The option ``contact_modulus_pa`` gives
+every grain contact a stiffness set by the material and proportional to the grain diameter
+D instead (``contact_modulus_pa`` x D against steel, the core and the walls, half that
+between two grains: a packing's modulus is then the same at every resolution), for the
+bucket plates too: ``tau`` stays, the impedance carries the resolution,
+``1 - d = c m / (K tau^2)`` (below an impedance of 0.7 the time constant gets longer
+instead). Measured, it made the finer piles fill less, not converge: the soft bucket
+contacts had been letting fine grains sink into the cutting edge (docs/soil_models.md), so
+it is not the default. The slump test reads the same with the default contacts at 0.01 s
+and 0.004 s (a released block of grains settles at 31 and 33 deg mean angle).
 
 **Digging zone.** Only the part of the pile the bucket reaches is made of moving grains:
 up to ``PARTICLE_ZONE_DEPTH_M`` behind the toe, ``PARTICLE_ZONE_HALF_WIDTH_M`` either side
@@ -157,6 +161,15 @@ GRAIN_CONTACT_MODULUS_PA = 5e7
 # pyramidal cone bounced off at 500 Hz (a softer contact gets a longer time constant
 # instead); nearer to 1 the solver hardly converges (refused)
 CONTACT_IMPEDANCE_RANGE = (0.7, 0.999)
+# the bucket plates' contacts by default: MuJoCo's default solref / solimp at this steel
+# friction angle (dry gravel's, summer's: where the default contacts were chosen and
+# measured); at any other steel friction the impedance makes up for the pyramidal cone's
+# 2 / (mu^2 (1 + mu^2)) stiffening (``steel_contact``), so that a grain's normal contact
+# with the plates is as stiff whatever the friction (docs/soil_models.md, "Grains thrown
+# out of the pile on low-friction steel")
+STEEL_REFERENCE_FRICTION_ANGLE_DEG = 25.0
+MUJOCO_SOLREF = (0.02, 1.0)  # MuJoCo's default solref: time constant [s], damping ratio
+MUJOCO_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)  # MuJoCo's default solimp
 SOLIMP_WIDTH_M = 0.001  # MuJoCo's default (unused: the impedance is flat, d0 = dmax)
 PARTICLE_PRIORITY = 2  # > ground's 1: particle friction governs particle-ground contacts
 BUCKET_PRIORITY = 3  # > particles': steel friction tan(delta) governs bucket contacts
@@ -233,7 +246,8 @@ class ParticleSoil(SoilModel):
         - ``contact_modulus_pa``: ``None`` (default): MuJoCo's mass-normalised contacts
           (default impedance; under a load F a grain of mass m sinks about (F / m) tau^2,
           so the lighter grains of a finer pile sink deeper), the bucket's contacts at
-          MuJoCo's defaults. A number: a grain's normal contact stiffness against steel
+          MuJoCo's defaults made as compliant at every steel friction as at tan 25 deg
+          (``steel_contact``). A number: a grain's normal contact stiffness against steel
           per metre of its diameter [N/m per m] (between two grains half that), the same
           at every resolution, for the bucket plates too (module docstring;
           ``GRAIN_CONTACT_MODULUS_PA`` is the value docs/soil_models.md measured: it
@@ -405,7 +419,11 @@ class ParticleSoil(SoilModel):
         the mass-normalised contacts)."""
         if self.contact_modulus_pa is None:
             self.grain_stiffness_n_m = None
-            return {"solref": [self.contact_timeconst_s, 1.0]}, {}
+            solref, solimp = steel_contact(tool_friction)
+            return {"solref": [self.contact_timeconst_s, 1.0]}, {
+                "solref": solref,
+                "solimp": solimp,
+            }
         self.grain_stiffness_n_m = self.contact_modulus_pa * 2.0 * self.radius_m
         contacts = []
         for mu in (friction, tool_friction):
@@ -853,6 +871,43 @@ def contact_parameters(
             "constant: choose a lower contact_modulus_pa or a coarser pile"
         )
     return timeconst_s, impedance
+
+
+def pyramid_stiffening(friction: float) -> float:
+    """The factor c = 2 / (mu^2 (1 + mu^2)) by which MuJoCo's pyramidal friction cone
+    stiffens a contact of sliding ``friction`` mu against the elliptic cone's (its
+    regulariser scaled by 2 mu^2 over the four edges; ``contact_parameters``)."""
+    return 2.0 / (friction**2 * (1.0 + friction**2))
+
+
+def steel_contact(friction: float) -> tuple[list[float], list[float]]:
+    """The bucket plates' default ``solref`` and ``solimp`` for a steel friction ``friction``
+    (tan of the material's soil-steel friction angle).
+
+    At ``STEEL_REFERENCE_FRICTION_ANGLE_DEG`` they are MuJoCo's defaults (``MUJOCO_SOLREF``,
+    ``MUJOCO_SOLIMP``). With the pyramidal cone a contact's static compliance is
+    (1 - d) tau^2 / (c m) (``contact_parameters``), c = ``pyramid_stiffening(mu)``: on
+    smoother steel MuJoCo's defaults would make the grain-steel contact c(mu) / c(mu_ref)
+    times stiffer (3.4x at winter_c's tan 15 deg), nearly a hard constraint (effective
+    impedance 0.998), which the pile's capped CG iterations leave unresolved: grains
+    sank a whole radius into the 24 mm plates and shot out at tens of m/s
+    (docs/soil_models.md). Here the impedance's complement (1 - d) is scaled by
+    c(mu) / c(mu_ref) instead, so the compliance is the reference's; where that takes
+    ``dmin`` below ``CONTACT_IMPEDANCE_RANGE[0]`` the time constant grows instead (as in
+    ``contact_parameters``). ``dmax`` is at most ``CONTACT_IMPEDANCE_RANGE[1]``."""
+    if not friction > 0.0:
+        raise ValueError(f"steel_contact: friction must be > 0, got {friction!r}")
+    reference = math.tan(math.radians(STEEL_REFERENCE_FRICTION_ANGLE_DEG))
+    scale = pyramid_stiffening(friction) / pyramid_stiffening(reference)
+    timeconst_s, dampratio = MUJOCO_SOLREF
+    dmin, dmax, width, midpoint, power = MUJOCO_SOLIMP
+    low, high = CONTACT_IMPEDANCE_RANGE
+    if scale == 1.0:
+        return list(MUJOCO_SOLREF), list(MUJOCO_SOLIMP)
+    longer = timeconst_s * math.sqrt(max(1.0, scale * (1.0 - dmin) / (1.0 - low)))
+    factor = scale * (timeconst_s / longer) ** 2
+    impedances = [min(1.0 - (1.0 - d) * factor, high) for d in (dmin, dmax)]
+    return [longer, dampratio], [*impedances, width, midpoint, power]
 
 
 def _add_bevel(spec: mujoco.MjSpec) -> None:
