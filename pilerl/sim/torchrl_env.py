@@ -277,19 +277,21 @@ class SimulatorBatchEnv(EnvBase):
 
         TorchRL's ``rollout`` ends by stacking its steps onto ``out`` when given one; this
         gives it one without entries, sized when the steps are known, so that its stack
-        copies nothing, and stacks the steps here. With ``out``, ``return_contiguous`` or
-        ``set_truncated`` set, it is TorchRL's ``rollout`` unchanged."""
+        copies nothing, and stacks the steps here. With ``out`` or ``set_truncated`` given,
+        or ``return_contiguous`` given as anything but False, it is TorchRL's ``rollout``
+        unchanged."""
         if (
             kwargs.get("out") is not None
             or kwargs.get("return_contiguous", False) is not False
             or kwargs.get("set_truncated", False)
         ):
             return super().rollout(max_steps, policy, callback, **kwargs)
-        self._rollout_steps = steps = StepsToStack()
+        outer, self._rollout_steps = self._rollout_steps, StepsToStack()
+        steps = self._rollout_steps
         try:
             super().rollout(max_steps, policy, callback, out=steps.out, **kwargs)
         finally:
-            self._rollout_steps = None
+            self._rollout_steps = outer  # a rollout called inside another one's policy
         return stack_steps(steps.steps, steps.dim).refine_names(..., "time")
 
     def _rollout_nonstop(self, **kwargs) -> list[TensorDictBase]:

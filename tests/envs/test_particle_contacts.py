@@ -9,6 +9,8 @@ parameters (the pile is not compiled), so the test is small and exact."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import gymnasium as gym
 import mujoco
 import numpy as np
@@ -35,12 +37,13 @@ COARSE, FINE = 4.0, 8.0  # grain diameters across the bucket mouth
 
 
 def _soil_spec(
-    mouth_grains: float, condition: str = "summer", **options
+    mouth_grains: float, condition: str = "summer", *, material=None, **options
 ) -> tuple[ParticleSoil, mujoco.MjSpec]:
-    """The soil's grain size, mass and contact parameters, without compiling its pile."""
+    """The soil's grain size, mass and contact parameters, without compiling its pile
+    (``material``: instead of the condition's)."""
     options = {"contact_modulus_pa": GRAIN_CONTACT_MODULUS_PA, **options}
     soil = ParticleSoil(
-        CONDITIONS[condition].material,
+        material or CONDITIONS[condition].material,
         PileGeometry(),
         BucketGeometry(),
         mouth_grains=mouth_grains,
@@ -186,6 +189,10 @@ def test_default_steel_contacts_are_as_stiff_whatever_the_steel_friction():
     for condition in ("summer", "winter_a", "winter_c", "winter_d"):
         soil, spec = _soil_spec(COARSE, condition, contact_modulus_pa=None)
         sinks[condition] = _sink_m(soil, spec, "steel", acceleration * soil.particle_mass_kg)
+    # and above the reference friction (the impedance then stiffer than MuJoCo's default)
+    rough = dataclasses.replace(CONDITIONS["summer"].material, tool_friction_angle_deg=35.0)
+    soil, spec = _soil_spec(COARSE, material=rough, contact_modulus_pa=None)
+    sinks["steel at 35 deg"] = _sink_m(soil, spec, "steel", acceleration * soil.particle_mass_kg)
     for condition, sink in sinks.items():
         assert sink == pytest.approx(sinks["summer"], rel=0.02), condition
     # about 2.6 mm: MuJoCo's default impedance (1 - 0.95) x (0.02 s)^2 x 1000 m/s^2 / c,
@@ -203,6 +210,13 @@ def test_default_steel_contacts_are_as_stiff_whatever_the_steel_friction():
 def test_impossible_steel_friction_fails_naming_the_function(bad):
     with pytest.raises(ValueError, match="steel_contact"):
         steel_contact(bad)
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 2.0])
+def test_too_smooth_steel_fails_naming_the_material_field(angle_deg):
+    smooth = dataclasses.replace(CONDITIONS["summer"].material, tool_friction_angle_deg=angle_deg)
+    with pytest.raises(ValueError, match="tool_friction_angle_deg must be >= 5 deg"):
+        _soil_spec(COARSE, material=smooth, contact_modulus_pa=None)
 
 
 @pytest.mark.parametrize("bad", [1e3, 1e12, float("nan"), True, "5e7"])

@@ -168,6 +168,10 @@ CONTACT_IMPEDANCE_RANGE = (0.7, 0.999)
 # with the plates is as stiff whatever the friction (docs/soil_models.md, "Grains thrown
 # out of the pile on low-friction steel")
 STEEL_REFERENCE_FRICTION_ANGLE_DEG = 25.0
+# below this the compensation's time constant exceeds ~0.07 s (3.4x MuJoCo's 0.02 s): the
+# plates' contacts would hardly push back in an impact; refused (wet steel on ice ~ 3 deg
+# is not a pile-loading condition here)
+MIN_STEEL_FRICTION_ANGLE_DEG = 5.0
 MUJOCO_SOLREF = (0.02, 1.0)  # MuJoCo's default solref: time constant [s], damping ratio
 MUJOCO_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)  # MuJoCo's default solimp
 SOLIMP_WIDTH_M = 0.001  # MuJoCo's default (unused: the impedance is flat, d0 = dmax)
@@ -419,6 +423,14 @@ class ParticleSoil(SoilModel):
         the mass-normalised contacts)."""
         if self.contact_modulus_pa is None:
             self.grain_stiffness_n_m = None
+            angle_deg = self.material.tool_friction_angle_deg
+            if not angle_deg >= MIN_STEEL_FRICTION_ANGLE_DEG:
+                raise ValueError(
+                    f"particle soil: the material's tool_friction_angle_deg must be >= "
+                    f"{MIN_STEEL_FRICTION_ANGLE_DEG:g} deg, got {angle_deg!r}: below it the "
+                    "bucket plates' contacts, kept as compliant as on dry gravel's steel, get "
+                    "time constants too long to stop a grain in an impact (steel_contact)"
+                )
             solref, solimp = steel_contact(tool_friction)
             return {"solref": [self.contact_timeconst_s, 1.0]}, {
                 "solref": solref,
@@ -894,7 +906,7 @@ def steel_contact(friction: float) -> tuple[list[float], list[float]]:
     (docs/soil_models.md). Here the impedance's complement (1 - d) is scaled by
     c(mu) / c(mu_ref) instead, so the compliance is the reference's; where that takes
     ``dmin`` below ``CONTACT_IMPEDANCE_RANGE[0]`` the time constant grows instead (as in
-    ``contact_parameters``). ``dmax`` is at most ``CONTACT_IMPEDANCE_RANGE[1]``."""
+    ``contact_parameters``). Both impedances are at most ``CONTACT_IMPEDANCE_RANGE[1]``."""
     if not friction > 0.0:
         raise ValueError(f"steel_contact: friction must be > 0, got {friction!r}")
     reference = math.tan(math.radians(STEEL_REFERENCE_FRICTION_ANGLE_DEG))
