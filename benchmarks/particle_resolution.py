@@ -40,6 +40,14 @@ Particles, second table (one row per resolution):
     python benchmarks/particle_resolution.py --zone-scale 1.3 --mouth-grains 4 6  # larger zone
     python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
     python benchmarks/particle_resolution.py --penetration --seeds 3     # push tests
+    python benchmarks/particle_resolution.py --mouth-grains 6 --condition winter_a \
+        --overrides '{"material": {"cohesion_pa": 0}}'   # the particles' loose material
+
+``--overrides`` (JSON, as the env's ``condition_overrides``) changes the condition's
+physical values on every soil of the run, in every mode. The particle pile has no cohesion
+(its grains are loose), while every winter preset's material is cohesive (2-6 kPa): to
+compare the two soils on the same material, give the heightfield the particles' material
+with ``{"material": {"cohesion_pa": 0}}`` (docs/soil_models.md, "Cohesion").
 
 ``--intake-only`` prints only the heightfield table, for every condition preset (the
 expert's fill and success with either intake, without and with ``body_resistance``; no
@@ -56,6 +64,7 @@ the seeds; ``/p``: over the particles'.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import time
 
@@ -151,8 +160,9 @@ def push_penetration_m(env: gym.Env, seed: int, curl_s: float) -> float:
     return furthest
 
 
-def print_penetration_table(seeds: list[int]) -> None:
-    """How far a pushed bucket gets into the pile on each soil, level and curled."""
+def print_penetration_table(seeds: list[int], overrides: dict | None = None) -> None:
+    """How far a pushed bucket gets into the pile on each soil, level and curled (with
+    ``overrides`` as the condition overrides of every soil)."""
     soils = (
         ("hf default", {"soil": "heightfield"}),
         ("hf body", {"soil": "heightfield", "soil_options": BODY}),
@@ -176,6 +186,7 @@ def print_penetration_table(seeds: list[int]) -> None:
                 condition=condition,
                 sensor_noise=0.0,
                 start_distance_range_m=PUSH_START_M,
+                condition_overrides=overrides,
                 **kwargs,
             )
             for name, kwargs in soils
@@ -202,10 +213,12 @@ def fills_text(fills: list[float]) -> str:
     return ", ".join(f"{f:.2f}" for f in fills)
 
 
-def print_intake_table(seeds: list[int], expert_style: dict | None = None) -> None:
+def print_intake_table(
+    seeds: list[int], expert_style: dict | None = None, overrides: dict | None = None
+) -> None:
     """The heightfield's two intakes, without and with resistance over the buried body, on
     every condition preset: mean fill, success and episode length (the nominal expert, or
-    with ``expert_style``'s fields changed)."""
+    with ``expert_style``'s fields changed; ``overrides``: condition overrides)."""
     from pilerl_pile_loader.conditions import CONDITIONS
 
     n = len(seeds)
@@ -219,13 +232,16 @@ def print_intake_table(seeds: list[int], expert_style: dict | None = None) -> No
     print(
         f"heightfield, {n} seeded scoops by {who} per condition: "
         "fill / success / mean episode s (swept: what passed the mouth, fp)"
+        + (f"; condition overrides {overrides}" if overrides else "")
     )
     header = f"{'condition':>10} {'swept':>5} " + " ".join(f"{name:>17}" for name, _ in configs)
     print(header)
     print("-" * len(header))
     for condition in CONDITIONS:
         rows = {
-            name: run_scoops(seeds, condition, expert_style, soil_options=o)[0]
+            name: run_scoops(
+                seeds, condition, expert_style, soil_options=o, condition_overrides=overrides
+            )[0]
             for name, o in configs
         }
         cells = " ".join(
@@ -257,6 +273,19 @@ def expert_options(texts: list[str], parser: argparse.ArgumentParser) -> dict:
             except ValueError:
                 parser.error(f"--expert-option {text!r}: {value!r} is not a number or true/false")
     return style
+
+
+def condition_overrides(text: str) -> dict:
+    """``--overrides``: a JSON object of condition overrides, by part and field."""
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise argparse.ArgumentTypeError(f"not JSON ({error}): {text!r}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(
+            f'expected an object like {{"material": {{"cohesion_pa": 0}}}}, got {text!r}'
+        )
+    return value
 
 
 def contact_modulus(text: str) -> float | None:
@@ -309,22 +338,35 @@ def main() -> None:
         help="with --intake-only: change the nominal expert's OperatorStyle fields, e.g. "
         "push_throttle=0.35 (envs/pilerl_pile_loader/operator.py)",
     )
+    parser.add_argument(
+        "--overrides",
+        type=condition_overrides,
+        default=None,
+        help='condition overrides of every soil (JSON), e.g. \'{"material": {"cohesion_pa": 0}}\'',
+    )
     args = parser.parse_args()
+    overrides = args.overrides
     expert_style = expert_options(args.expert_option, parser)
     seeds = list(range(args.seeds))
     n = len(seeds)
     if expert_style and not args.intake_only:
         parser.error("--expert-option: only with --intake-only")
     if args.intake_only:
-        print_intake_table(seeds, expert_style)
+        print_intake_table(seeds, expert_style, overrides)
         return
     if args.penetration:
-        print_penetration_table(seeds)
+        print_penetration_table(seeds, overrides)
         return
 
     condition = args.condition
     hf_runs = {
-        name: run_scoops(seeds, condition, soil="heightfield", soil_options=options)[0]
+        name: run_scoops(
+            seeds,
+            condition,
+            soil="heightfield",
+            soil_options=options,
+            condition_overrides=overrides,
+        )[0]
         for name, options in (
             ("footprint", {"measure_mouth": True}),
             ("mouth", {"intake": "mouth"}),
@@ -333,7 +375,10 @@ def main() -> None:
         )
     }
     hf, hf_mouth, hf_mouth_body = hf_runs["footprint"], hf_runs["mouth"], hf_runs["mouth+body"]
-    print(f"heightfield, {n} seeded {condition} scoops by the nominal expert")
+    print(
+        f"heightfield, {n} seeded {condition} scoops by the nominal expert"
+        + (f", condition overrides {overrides}" if overrides else "")
+    )
     header = f"{'intake':>10} {'fill':>5} {'swept':>5} {'success':>7} {'rt':>6}  fills"
     print(header)
     print("-" * len(header))
@@ -371,7 +416,9 @@ def main() -> None:
             options["contact_timeconst_s"] = args.contact_timeconst
         if args.zone_scale is not None:
             options["zone_scale"] = args.zone_scale
-        p, build_s, env = run_scoops(seeds, condition, soil="particles", soil_options=options)
+        p, build_s, env = run_scoops(
+            seeds, condition, soil="particles", soil_options=options, condition_overrides=overrides
+        )
         soil = env.unwrapped.soil
         count = f"{soil.n_particles}+{len(soil.core)}"
         print(
