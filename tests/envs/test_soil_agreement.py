@@ -1,0 +1,53 @@
+"""The heightfield against the particle pile on the same material (docs/soil_models.md,
+"Comparing the two soils on the same material").
+
+The particle pile's grains are loose; the heightfield's FEE charges the material's
+cohesion. On a loose material (summer's dry gravel) the heightfield's mouth intake, which
+admits only what the bucket mouth sweeps, fills the scripted expert's scoop as the particle
+pile does (0.48 and 0.47 on seed 0), where the default footprint intake fills it to the
+cap (1.10). On a cohesive material (winter_a's wet gravel, 4 kPa) the mouth intake fills
+about half of what it fills on the same gravel without cohesion."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+from pilerl_pile_loader.operator import make_expert
+
+import pilerl  # noqa: F401
+
+SEED = 0
+AGREEMENT = 0.15  # issue #15 item 3: within 15 % of each other
+LOOSE = {"material": {"cohesion_pa": 0.0}}
+
+
+def expert_fill(condition: str, soil: str, **env_kwargs) -> float:
+    """The nominal expert's final fill on one seeded start (noiseless sensors)."""
+    env = gym.make(
+        "pilerl/PileLoading-v0", condition=condition, soil=soil, sensor_noise=0.0, **env_kwargs
+    )
+    obs, _ = env.reset(seed=SEED)
+    expert = make_expert(dt=env.unwrapped.dt)
+    expert.reset()
+    while True:
+        obs, _, terminated, truncated, info = env.step(expert.act(obs))
+        if terminated or truncated:
+            env.close()
+            return float(info["fill_fraction"])
+
+
+def test_on_loose_gravel_the_mouth_intake_fills_like_the_particle_pile():
+    particles = expert_fill("summer", "particles")
+    mouth = expert_fill("summer", "heightfield", soil_options={"intake": "mouth"})
+    footprint = expert_fill("summer", "heightfield")
+    assert 0.3 < particles < 0.7  # a real scoop, not an empty or jammed bucket
+    assert abs(particles / mouth - 1.0) <= AGREEMENT
+    # the default intake takes what the bucket's floor and back plate push aside too
+    assert footprint > 1.5 * particles
+
+
+def test_cohesion_keeps_the_mouth_scoop_light():
+    mouth = {"intake": "mouth"}
+    cohesive = expert_fill("winter_a", "heightfield", soil_options=mouth)
+    loose = expert_fill("winter_a", "heightfield", soil_options=mouth, condition_overrides=LOOSE)
+    assert cohesive < 0.6 * loose
+    assert loose >= 0.5  # on the same gravel without cohesion the scoop fills half a bucket
