@@ -9,7 +9,19 @@ depth 0 "no contact" (the few in between are left out). Per condition it prints:
   detector (1 = separates perfectly, 0.5 = no information, < 0.5 = reads backwards);
 - ``p_d p90``: the drive pressure's 90th percentile in contact [MPa], and ``/summer``,
   its ratio to summer's (the slip cap: well below 1 on ice);
-- ``p_t med``: the telescope pressure's median in contact and without [MPa].
+- ``p_t med``: the telescope pressure's median in contact and without [MPa];
+- ``p_d rip``: the drive pressure's ripple in contact, the median of its change between
+  consecutive 20 Hz samples [MPa] (sensor noise alone gives ~0.2 MPa): whether the
+  pressure a controller reads is a machine's or a series of impacts.
+
+``--soil particles`` measures on the particle pile instead (slow: ~0.4x real time), and
+``--overrides JSON`` changes the condition's physical values (the env's
+``condition_overrides``), e.g. the particle pile's loose material on the heightfield:
+
+    python benchmarks/sensor_separability.py --conditions summer winter_c --starts 4 \
+        --overrides '{"material": {"cohesion_pa": 0}}'
+    python benchmarks/sensor_separability.py --conditions summer winter_c --starts 4 \
+        --soil particles
 
 With ``--baseline PATH`` (another checkout of the repository, e.g. one made with
 ``git worktree add /tmp/before <commit before the change>``) the same
@@ -37,8 +49,14 @@ SECONDS = 8.0
 CONTACT_DEPTH_M = 0.05
 
 
-def measure(conditions: tuple[str, ...], starts: int) -> dict[str, dict[str, float]]:
-    """The drive-in measurement of this process's simulator, per condition."""
+def measure(
+    conditions: tuple[str, ...],
+    starts: int,
+    soil: str = "heightfield",
+    overrides: dict | None = None,
+) -> dict[str, dict[str, float]]:
+    """The drive-in measurement of this process's simulator, per condition, on ``soil``
+    with ``overrides`` as the condition overrides."""
     import gymnasium as gym
     import numpy as np
     from sklearn.metrics import roc_auc_score
@@ -47,21 +65,23 @@ def measure(conditions: tuple[str, ...], starts: int) -> dict[str, dict[str, flo
 
     results = {}
     for condition in conditions:
-        env = gym.make("pilerl/PileLoading-v0", condition=condition).unwrapped
-        rows = []
+        env = gym.make(
+            "pilerl/PileLoading-v0", condition=condition, soil=soil, condition_overrides=overrides
+        ).unwrapped
+        rows, ripple = [], []
         for seed in range(starts):
+            previous = None  # the last sample's drive pressure, if it was in contact
             obs, info = env.reset(seed=seed)
             while info["elapsed_s"] < SECONDS - 1e-9:
                 obs, _, terminated, truncated, info = env.step(
                     np.array([0.0, 0.0, THROTTLE], dtype=np.float32)
                 )
-                rows.append(
-                    (
-                        info["cutting_depth_m"],
-                        float(obs["drive_pressure"][0]),
-                        float(obs["telescope_pressure"][0]),
-                    )
-                )
+                depth, drive = info["cutting_depth_m"], float(obs["drive_pressure"][0])
+                rows.append((depth, drive, float(obs["telescope_pressure"][0])))
+                in_contact = depth > CONTACT_DEPTH_M
+                if in_contact and previous is not None:
+                    ripple.append(abs(drive - previous))
+                previous = drive if in_contact else None
                 if terminated or truncated:
                     break
         env.close()
@@ -79,6 +99,7 @@ def measure(conditions: tuple[str, ...], starts: int) -> dict[str, dict[str, flo
             "p_d_p90": float(np.percentile(p_d[contact], 90)),
             "p_t_contact": float(np.median(p_t[contact])),
             "p_t_free": float(np.median(p_t[free])),
+            "p_d_ripple": float(np.median(ripple)) if ripple else float("nan"),
         }
     return results
 
@@ -107,6 +128,7 @@ def table(label: str, results: dict[str, dict[str, float]]) -> list[str]:
         lines.append(
             f"{label:<7}{condition:<10}{r['p_t_auc']:>8.2f}{r['p_d_auc']:>8.2f}"
             f"{r['p_d_p90']:>9.1f}{ratio}{r['p_t_contact']:>10.2f}{r['p_t_free']:>9.2f}"
+            f"{r.get('p_d_ripple', float('nan')):>9.2f}"
         )
     return lines
 
@@ -116,7 +138,15 @@ def main() -> None:
     parser.add_argument("--baseline", type=Path, help="checkout to measure as BEFORE")
     parser.add_argument("--starts", type=int, default=6, help="seeded starts per condition")
     parser.add_argument("--conditions", nargs="+", default=list(CONDITIONS))
+    parser.add_argument("--soil", choices=("heightfield", "particles"), default="heightfield")
+    parser.add_argument(
+        "--overrides", type=json.loads, default=None, help="condition overrides (JSON)"
+    )
     args = parser.parse_args()
+    if args.baseline is not None and (args.soil != "heightfield" or args.overrides):
+        parser.error("--baseline: measures the default heightfield only (no --soil, --overrides)")
+    if args.overrides is not None and not isinstance(args.overrides, dict):
+        parser.error(f'--overrides: expected {{"material": {{...}}}}, got {args.overrides!r}')
     if args.starts < 1:
         parser.error(f"--starts: must be >= 1, got {args.starts}")
     unknown = sorted(set(args.conditions) - set(CONDITIONS))
@@ -127,15 +157,18 @@ def main() -> None:
     conditions = tuple(args.conditions)
     header = (
         f"{'':<7}{'condition':<10}{'p_t AUC':>8}{'p_d AUC':>8}{'p_d p90':>9}{'/summer':>7}"
-        f"{'p_t med c':>10}{'p_t med':>9}"
+        f"{'p_t med c':>10}{'p_t med':>9}{'p_d rip':>9}"
     )
     lines = [header]
     if args.baseline is not None:
         lines += table("BEFORE", measure_checkout(args.baseline.resolve(), conditions, args.starts))
-    lines += table("AFTER" if args.baseline is not None else "", measure(conditions, args.starts))
+    after = measure(conditions, args.starts, args.soil, args.overrides)
+    lines += table("AFTER" if args.baseline is not None else "", after)
     print(
-        f"drive-in: throttle {THROTTLE}, boom and bucket held, {args.starts} starts x "
-        f"{SECONDS:.0f} s per condition; contact = depth > {CONTACT_DEPTH_M * 100:.0f} cm"
+        f"drive-in on the {args.soil} soil: throttle {THROTTLE}, boom and bucket held, "
+        f"{args.starts} starts x {SECONDS:.0f} s per condition; contact = depth > "
+        f"{CONTACT_DEPTH_M * 100:.0f} cm"
+        + (f"; condition overrides {args.overrides}" if args.overrides else "")
     )
     print("\n".join(lines))
 
