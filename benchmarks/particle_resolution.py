@@ -64,7 +64,6 @@ the seeds; ``/p``: over the particles'.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import time
 
@@ -160,7 +159,7 @@ def push_penetration_m(env: gym.Env, seed: int, curl_s: float) -> float:
     return furthest
 
 
-def print_penetration_table(seeds: list[int], overrides: dict | None = None) -> None:
+def print_penetration_table(seeds: list[int], *, overrides: dict | None = None) -> None:
     """How far a pushed bucket gets into the pile on each soil, level and curled (with
     ``overrides`` as the condition overrides of every soil)."""
     soils = (
@@ -171,6 +170,7 @@ def print_penetration_table(seeds: list[int], overrides: dict | None = None) -> 
     print(
         f"penetration [m] past the toe, throttle {PUSH_THROTTLE}, boom held, "
         f"{PUSH_SECONDS:.0f} s, seeds {seeds[0]}-{seeds[-1]}"
+        + (f", condition overrides {overrides}" if overrides else "")
     )
     header = (
         f"{'condition':>10} {'bucket':>7} "
@@ -214,7 +214,7 @@ def fills_text(fills: list[float]) -> str:
 
 
 def print_intake_table(
-    seeds: list[int], expert_style: dict | None = None, overrides: dict | None = None
+    seeds: list[int], expert_style: dict | None = None, *, overrides: dict | None = None
 ) -> None:
     """The heightfield's two intakes, without and with resistance over the buried body, on
     every condition preset: mean fill, success and episode length (the nominal expert, or
@@ -276,16 +276,13 @@ def expert_options(texts: list[str], parser: argparse.ArgumentParser) -> dict:
 
 
 def condition_overrides(text: str) -> dict:
-    """``--overrides``: a JSON object of condition overrides, by part and field."""
+    """``--overrides``: condition overrides as JSON, checked before anything runs."""
+    from pilerl_pile_loader.conditions import parse_overrides
+
     try:
-        value = json.loads(text)
-    except json.JSONDecodeError as error:
-        raise argparse.ArgumentTypeError(f"not JSON ({error}): {text!r}") from None
-    if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError(
-            f'expected an object like {{"material": {{"cohesion_pa": 0}}}}, got {text!r}'
-        )
-    return value
+        return parse_overrides(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def contact_modulus(text: str) -> float | None:
@@ -352,10 +349,10 @@ def main() -> None:
     if expert_style and not args.intake_only:
         parser.error("--expert-option: only with --intake-only")
     if args.intake_only:
-        print_intake_table(seeds, expert_style, overrides)
+        print_intake_table(seeds, expert_style, overrides=overrides)
         return
     if args.penetration:
-        print_penetration_table(seeds, overrides)
+        print_penetration_table(seeds, overrides=overrides)
         return
 
     condition = args.condition

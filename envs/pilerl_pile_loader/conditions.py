@@ -20,6 +20,7 @@ validated, so a typo'd or impossible value fails at construction with the field'
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from dataclasses import dataclass, field
 
@@ -290,3 +291,23 @@ def get_condition(name: str) -> Condition:
         raise ValueError(
             f"unknown condition {name!r}; known conditions: {sorted(PRESETS)}"
         ) from None
+
+
+def parse_overrides(text: str) -> dict[str, dict[str, float]]:
+    """Condition overrides from a JSON text as a command line gives them, e.g.
+    ``'{"material": {"cohesion_pa": 0}}'``, checked against the summer preset's fields and
+    ranges; raises ``ValueError`` naming what is wrong (not JSON, not an object of objects,
+    an unknown part or field, a value that is not a finite number or out of range)."""
+    try:
+        overrides = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise ValueError(f"condition overrides: not JSON ({error}): {text!r}") from None
+    example = '{"material": {"cohesion_pa": 0}}'
+    if not isinstance(overrides, dict) or not all(isinstance(v, dict) for v in overrides.values()):
+        raise ValueError(f"condition overrides: expected an object like {example}, got {text!r}")
+    for part, values in overrides.items():
+        for name, value in values.items():
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"condition overrides {part}.{name}: not a number: {value!r}")
+    CONDITIONS["summer"].with_overrides(overrides)
+    return overrides

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from pilerl_pile_loader.conditions import CONDITIONS, get_condition
+from pilerl_pile_loader.conditions import CONDITIONS, get_condition, parse_overrides
 
 
 def test_paper_conditions_exist():
@@ -45,3 +45,25 @@ def test_valid_override_changes_only_that_field():
     assert changed.material.density_kg_m3 == 1500.0
     assert changed.material.friction_angle_deg == base.material.friction_angle_deg
     assert changed.ground == base.ground
+
+
+def test_overrides_from_a_command_line_are_parsed():
+    assert parse_overrides('{"material": {"cohesion_pa": 0}}') == {"material": {"cohesion_pa": 0}}
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("nope", "not JSON"),
+        ('{"material": 5}', "expected an object"),
+        ('["material"]', "expected an object"),
+        ('{"material": {"cohesion_pa": "x"}}', r"material\.cohesion_pa: not a number"),
+        ('{"material": {"cohesion_pa": true}}', r"material\.cohesion_pa: not a number"),
+        ('{"materal": {}}', "unknown section 'materal'"),
+        ('{"ground": {"tyre_frictio": 1}}', "tyre_frictio"),
+        ('{"material": {"cohesion_pa": -1}}', "cohesion_pa: must be >= 0"),
+    ],
+)
+def test_bad_overrides_from_a_command_line_fail_naming_the_problem(text, message):
+    with pytest.raises(ValueError, match=message):
+        parse_overrides(text)
