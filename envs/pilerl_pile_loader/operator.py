@@ -90,6 +90,7 @@ CROWD_LIFT_STEP_RAD = 0.03  # foot off while the pinned boom comes up this step 
 FACE_CONTACT_MPA = 0.5  # the edge is in the face while p_t reads this above its free reading
 DRIVE_RELIEF_MPA = 25.0  # the drive's relief (docs/machine_model.md): a stalled push reads it
 TRACTION_CAP_FRACTION = 0.8  # a push flat below this x the relief: the wheels spin [MPa/MPa]
+SPIN_RISE_FRACTION = 0.5  # driving: p_d flat this x the impact rise above driving: stopped
 DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)
 STALL_WINDOW_S = 0.3  # the boom is felt to stall when, lifting this long, ...
 STALL_RISE_RAD = 0.01  # ... it has risen less than this [rad]
@@ -394,6 +395,7 @@ class PileLoadingOperator:
         # out of it; the highest telescope reading in this push [MPa]; the boom angle where
         # the pinned boom was freed [rad]; whether the bucket has bitten into the face
         self._push_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))
+        self._approach_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))
         self._roll_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))
         self._face_peak = 0.0
         self._free_from = 0.0
@@ -464,6 +466,15 @@ class PileLoadingOperator:
         if above and self._above_s >= st.impact_hold_s - 1e-9:
             self._impact_reading = value
             return True
+        if st.crowd_fill and st.trigger_sensor == "drive_pressure":
+            # a crowding operator also feels the machine stop at the pile with its wheels
+            # turning: the drive pressure, well up from driving, stays flat (on ice it tops
+            # out at what the tyres hold, below the rise it waits for)
+            self._approach_trace.append(value)
+            held = value - self._felt_level >= SPIN_RISE_FRACTION * st.impact_rise_mpa
+            if held and self._steady(self._approach_trace, STALL_WINDOW_S):
+                self._impact_reading = value
+                return True
         return False
 
     def _approach(self, reading: dict[str, float]) -> tuple[float, float, float]:

@@ -127,3 +127,18 @@ def test_on_the_mouth_intake_it_fills_a_summer_scoop_the_nominal_expert_does_not
     env.close()
     assert not fills[False][1] and fills[False][0] < 0.5  # 0.48 when written
     assert fills[True][1] and fills[True][0] >= fills[False][0] + 0.03  # 0.54
+
+
+def test_driving_it_feels_the_machine_stop_with_its_wheels_spinning():
+    """On ice the drive pressure tops out at what the tyres hold, short of the impact
+    rise: a crowding operator feels the machine stopped (the pressure well up and flat)."""
+    spinning = {**REST, "drive_pressure": REST["drive_pressure"] + 5.0}  # nominal rise: 7
+    phases = {}
+    for crowd in (False, True):
+        operator = make_expert(dt=DT, crowd_fill=crowd)
+        for _ in range(20):
+            operator.act(REST)
+        for _ in range(12):  # 0.6 s against the pile
+            operator.act(spinning)
+        phases[crowd] = operator.phase
+    assert phases == {False: "approach", True: "fill"}
