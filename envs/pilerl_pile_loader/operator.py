@@ -395,7 +395,8 @@ class PileLoadingOperator:
         # out of it; the highest telescope reading in this push [MPa]; the boom angle where
         # the pinned boom was freed [rad]; whether the bucket has bitten into the face
         self._push_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))
-        self._approach_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))
+        self._approach_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))
+        self._rolling = False  # driving: rolling steadily at a pressure it is used to
         self._roll_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))
         self._face_peak = 0.0
         self._free_from = 0.0
@@ -468,11 +469,14 @@ class PileLoadingOperator:
             return True
         if st.crowd_fill and st.trigger_sensor == "drive_pressure":
             # a crowding operator also feels the machine stop at the pile with its wheels
-            # turning: the drive pressure, well up from driving, stays flat (on ice it tops
-            # out at what the tyres hold, below the rise it waits for)
+            # turning: once rolling steadily at a pressure it is used to, the drive pressure
+            # comes well up and stays flat (on ice it tops out at what the tyres hold, below
+            # the rise it waits for)
             self._approach_trace.append(value)
-            held = value - self._felt_level >= SPIN_RISE_FRACTION * st.impact_rise_mpa
-            if held and self._steady(self._approach_trace, STALL_WINDOW_S):
+            up = value - self._felt_level >= SPIN_RISE_FRACTION * st.impact_rise_mpa
+            if not self._rolling:
+                self._rolling = not up and self._steady(self._approach_trace, BACK_STEADY_S)
+            elif up and self._steady(self._approach_trace, STALL_WINDOW_S):
                 self._impact_reading = value
                 return True
         return False
