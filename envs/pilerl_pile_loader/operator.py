@@ -28,7 +28,9 @@ bucket mouth: it keeps crowding the pile while the boom rises through the face (
 push together while the edge is in the face, felt on the telescope pressure), takes its foot
 off while a boom pinned by the push comes up a step, curls a step to break out when it does
 not, and fills with the wrist (lift while curling, gentle push) when the wheels slip; a
-scoop whose bucket never bit into the face is light. Off by default.
+scoop whose bucket never bit into the face is light. Driving, it also takes the machine
+stopping with its wheels turning (the drive pressure well up and flat: on ice it tops out
+short of the impact rise) for the impact. Off by default.
 
 Styles (``OperatorStyle``) make operators differ (pace, valve openings, how far they push
 and lift, how much they curl per lift), and ``sample_style`` draws one per episode. The
