@@ -393,13 +393,14 @@ class PileLoadingOperator:
         self._drive_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))  # backing off
         self._push_peak = 0.0
         self._eased = False
-        # crowd fill: the drive pressure while crowding in the face, and while crowding
-        # out of it; the highest telescope reading in this push [MPa]; the boom angle where
-        # the pinned boom was freed [rad]; whether the bucket has bitten into the face
+        # crowd fill: the drive pressure while crowding in the face, while driving at the
+        # pile, and while crowding out of the face; the highest telescope reading in this
+        # push [MPa]; the boom angle where the pinned boom was freed [rad]; whether the
+        # bucket has bitten into the face
         self._push_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))
         self._approach_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))
-        self._rolling = False  # driving: rolling steadily at a pressure it is used to
         self._roll_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))
+        self._rolling = False  # driving: rolling steadily at a pressure it is used to
         self._face_peak = 0.0
         self._free_from = 0.0
         self._bitten = False
