@@ -22,11 +22,15 @@ scores the labels).
 
     python benchmarks/demo_explainability.py                         # 24 summer episodes
     python benchmarks/demo_explainability.py --operators after --episodes 12 --hz 10
+    python benchmarks/demo_explainability.py --operators after --soil-option intake=mouth \
+        --expert-option crowd_fill=true --condition winter_a \
+        --overrides '{"material": {"cohesion_pa": 0}}'
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import time
 
@@ -48,7 +52,13 @@ PAPER["other_s"] = (709_368 / 500 - 16_322 / 20) / 20  # the rest of D_I's time
 DART_NOISE = 0.1
 
 
-def build_operator(kind: str, dt: float, rng: np.random.Generator, trigger_sensor: str):
+def build_operator(
+    kind: str,
+    dt: float,
+    rng: np.random.Generator,
+    trigger_sensor: str,
+    expert_options: dict[str, object] | None = None,
+):
     if kind == "before":
         try:
             from pilerl.operators import ScriptedScoopOperator, sample_style
@@ -60,17 +70,24 @@ def build_operator(kind: str, dt: float, rng: np.random.Generator, trigger_senso
         style = sample_style(rng, trigger_sensor=trigger_sensor)
         return ScriptedScoopOperator(style, dt=dt)
     noise = DART_NOISE if kind == "after+dart" else 0.0
-    return make_expert(dt=dt, rng=rng, trigger_sensor=trigger_sensor, executed_noise=noise)
+    return make_expert(
+        dt=dt,
+        rng=rng,
+        trigger_sensor=trigger_sensor,
+        executed_noise=noise,
+        **(expert_options or {}),
+    )
 
 
-def soil_options(pairs: list[str]) -> dict[str, object]:
+def soil_options(pairs: list[str], flag: str = "--soil-option") -> dict[str, object]:
     """``--soil-option KEY=VALUE`` pairs as the simulator's ``soil_options`` (``true`` and
-    ``false`` as booleans, numbers as floats, anything else as text)."""
+    ``false`` as booleans, numbers as floats, anything else as text); ``flag`` names the
+    option in errors (``--expert-option`` pairs are read the same way)."""
     options: dict[str, object] = {}
     for pair in pairs:
         key, sep, text = pair.partition("=")
         if not sep or not key:
-            raise SystemExit(f"--soil-option: expected KEY=VALUE, got {pair!r}")
+            raise SystemExit(f"{flag}: expected KEY=VALUE, got {pair!r}")
         if text in ("true", "false"):
             options[key] = text == "true"
         else:
@@ -81,6 +98,17 @@ def soil_options(pairs: list[str]) -> dict[str, object]:
     return options
 
 
+def condition_overrides(text: str) -> dict:
+    """``--overrides`` JSON as the simulator's ``condition_overrides``."""
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise argparse.ArgumentTypeError(f"not JSON: {error}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError("expected a JSON object {part: {field: value}}")
+    return value
+
+
 def record(kind: str, args: argparse.Namespace) -> dict:
     """Record ``args.episodes`` episodes with operator ``kind``; readings, labels, results."""
     env = gym.make(
@@ -88,11 +116,14 @@ def record(kind: str, args: argparse.Namespace) -> dict:
         condition=args.condition,
         control_hz=args.hz,
         soil_options=soil_options(args.soil_option),
+        condition_overrides=args.overrides,
     )
     dt = float(env.unwrapped.dt)
+    expert_options = soil_options(args.expert_option, "--expert-option")
     episodes, lengths, successes, fills = [], [], [], []
     for i in range(args.episodes):
-        operator = build_operator(kind, dt, np.random.default_rng([args.seed, i]), args.trigger)
+        rng = np.random.default_rng([args.seed, i])
+        operator = build_operator(kind, dt, rng, args.trigger, expert_options)
         operator.reset()
         obs, _ = env.reset(seed=args.seed * 100_000 + i)
         readings = {name: [] for name in CONTROLLER_SENSORS}
@@ -149,11 +180,26 @@ def main() -> None:
         default=[],
         help="KEY=VALUE soil options, e.g. body_resistance=true intake=mouth (docs/soil_models.md)",
     )
+    parser.add_argument(
+        "--expert-option",
+        nargs="*",
+        default=[],
+        help="KEY=VALUE options of the pile loader's expert (operators after, after+dart), "
+        "e.g. crowd_fill=true (docs/operators.md)",
+    )
+    parser.add_argument(
+        "--overrides",
+        type=condition_overrides,
+        default=None,
+        help='condition overrides as JSON, e.g. \'{"material": {"cohesion_pa": 0}}\'',
+    )
     args = parser.parse_args()
 
     print(
         f"{args.episodes} {args.condition} episodes per operator at {args.hz:g} Hz, seed "
-        f"{args.seed}; R²: episode-wise {min(4, args.episodes)}-fold CV, sensors "
+        f"{args.seed}; soil {soil_options(args.soil_option)}, expert "
+        f"{soil_options(args.expert_option, '--expert-option')}, overrides {args.overrides}; "
+        f"R²: episode-wise {min(4, args.episodes)}-fold CV, sensors "
         f"{CONTROLLER_SENSORS} + history {HISTORY_S} s"
     )
     header = (

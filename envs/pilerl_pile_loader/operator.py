@@ -23,6 +23,15 @@ is triggered by something it senses:
    finished: the operator backs off, lowers the boom, levels the bucket (one control at a
    time) and drives at the pile again, as often as it takes or until time runs out.
 
+With ``OperatorStyle.crowd_fill`` the operator fills the way a person does through the
+bucket mouth: it keeps crowding the pile while the boom rises through the face (lift and
+push together while the edge is in the face, felt on the telescope pressure), takes its foot
+off while a boom pinned by the push comes up a step, curls a step to break out when it does
+not, and fills with the wrist (lift while curling, gentle push) when the wheels slip; a
+scoop whose bucket never bit into the face is light. Driving, it also takes the machine
+stopping with its wheels turning (the drive pressure well up and flat: on ice it tops out
+short of the impact rise) for the impact. Off by default.
+
 Styles (``OperatorStyle``) make operators differ (pace, valve openings, how far they push
 and lift, how much they curl per lift), and ``sample_style`` draws one per episode. The
 paper's mistakes are behaviours, triggered by what the operator senses like everything
@@ -78,6 +87,12 @@ NOISE_CORRELATION_S = 0.4  # correlation time of the DART perturbation [s]
 NOISED_CONTROLS = (0, 1)  # boom and bucket (the throttle stays clean)
 LEVEL_RISE_S = 1.5  # how fast the felt driving level follows a rising reading [s]
 LEVEL_FALL_S = 0.2  # ... and a falling one (quickly, but not every noise dip) [s]
+# crowd fill (``OperatorStyle.crowd_fill``)
+CROWD_LIFT_STEP_RAD = 0.03  # foot off while the pinned boom comes up this step [rad]
+FACE_CONTACT_MPA = 0.5  # the edge is in the face while p_t reads this above its free reading
+DRIVE_RELIEF_MPA = 25.0  # the drive's relief (docs/machine_model.md): a stalled push reads it
+TRACTION_CAP_FRACTION = 0.8  # a push flat below this x the relief: the wheels spin [MPa/MPa]
+SPIN_RISE_FRACTION = 0.5  # driving: p_d flat this x the impact rise above driving: stopped
 DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)
 STALL_WINDOW_S = 0.3  # the boom is felt to stall when, lifting this long, ...
 STALL_RISE_RAD = 0.01  # ... it has risen less than this [rad]
@@ -124,6 +139,10 @@ class OperatorStyle:
             slipped: then it keeps its gentle push on, or the machine would lose the pile).
         back_off_throttle: reverse throttle when backing off out of the pile before
             raising (0: raise in the pile).
+        crowd_fill: fill by crowding through the face (``PileLoadingOperator._crowd_fill``,
+            docs/operators.md "Crowd fill"): keep pushing while the boom rises, so the
+            bucket mouth keeps passing through material; off by default (the operator the
+            demonstrations were recorded with).
     """
 
     trigger_sensor: str = "drive_pressure"
@@ -152,6 +171,7 @@ class OperatorStyle:
     go_again: bool = True
     push_while_curling: bool = False
     back_off_throttle: float = 0.3
+    crowd_fill: bool = False
 
     def __post_init__(self) -> None:
         if self.trigger_sensor not in TRIGGER_SENSORS:
@@ -197,11 +217,14 @@ def sample_style(
     *,
     trigger_sensor: str = "drive_pressure",
     mistake_rate: float = 0.28,
+    crowd_fill: bool = False,
 ) -> OperatorStyle:
     """Draw one operator: varied in pace, valve openings, how they fill and how briskly
     they back off; with probability ``mistake_rate`` one who makes one of the paper's
     mistakes (jumpy: lifts early on a false impact cue; timid: curls early and lifts out,
-    under-filling). Every operator goes again after a scoop that came up light."""
+    under-filling). Every operator goes again after a scoop that came up light.
+    ``crowd_fill``: every operator fills by crowding (``OperatorStyle.crowd_fill``); the
+    draws are the same either way."""
     low, high = IMPACT_RISE_RANGES_MPA[trigger_sensor]
     mistake = rng.random() < mistake_rate
     kind = rng.choice(("jumpy", "timid")) if mistake else "none"
@@ -222,10 +245,11 @@ def sample_style(
         hesitant=bool(rng.random() < 0.15),
         jumpy=kind == "jumpy",
         back_off_throttle=float(rng.uniform(0.2, 0.4)),
+        crowd_fill=crowd_fill,
     )
 
 
-OPTIONS = ("trigger_sensor", "mistake_rate", "executed_noise")
+OPTIONS = ("trigger_sensor", "mistake_rate", "executed_noise", "crowd_fill")
 
 
 def make_expert(
@@ -240,8 +264,10 @@ def make_expert(
         options: ``trigger_sensor`` (``drive_pressure`` | ``telescope_pressure``),
             ``mistake_rate`` (share of operators drawn with a mistake, in [0, 1]),
             ``executed_noise`` (std of the DART perturbation of the executed boom and
-            bucket commands, in [0, 1]; 0 = off); for the nominal operator also any
-            ``OperatorStyle`` field (e.g. ``jumpy``, ``push_throttle``) to set its style.
+            bucket commands, in [0, 1]; 0 = off), ``crowd_fill`` (fill by crowding through
+            the face, ``OperatorStyle.crowd_fill``; default off); for the nominal operator
+            also any ``OperatorStyle`` field (e.g. ``jumpy``, ``push_throttle``) to set its
+            style.
     """
     style_fields = {f.name for f in fields(OperatorStyle)} - {"trigger_sensor"}
     # a drawn operator takes the mistake rate; the nominal one its style, field by field
@@ -268,9 +294,22 @@ def make_expert(
         chosen.setdefault("impact_rise_mpa", (low + high) / 2)
         style, noise_seed = OperatorStyle(trigger_sensor=trigger_sensor, **chosen), 0
     else:
-        style = sample_style(rng, trigger_sensor=trigger_sensor, mistake_rate=mistake_rate)
+        crowd_fill = _flag("crowd_fill", options.get("crowd_fill", False))
+        style = sample_style(
+            rng, trigger_sensor=trigger_sensor, mistake_rate=mistake_rate, crowd_fill=crowd_fill
+        )
         noise_seed = int(rng.integers(2**63 - 1))
     return PileLoadingOperator(style, dt=dt, executed_noise=executed_noise, noise_seed=noise_seed)
+
+
+def _flag(name: str, value: object) -> bool:
+    """``value`` as a boolean (``true``/``false`` text too); anything else fails naming
+    the option."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, str) and value.lower() in ("true", "false"):
+        return value.lower() == "true"
+    raise ValueError(f"pile_loader scripted expert: {name} must be true or false, got {value!r}")
 
 
 def _fraction(name: str, value: object) -> float:
@@ -335,6 +374,7 @@ class PileLoadingOperator:
         self._steps_to_decision = 0  # control steps until the next decision
         self._rest_boom: float | None = None  # boom angle at rest, felt at the start [rad]
         self._rest_pitch = 0.0  # boom + bucket angle with the floor level [rad]
+        self._free_telescope = 0.0  # telescope reading with the bucket free, felt at the start
         self._noise = np.zeros(3)
         self._noise_rng = np.random.default_rng(self.noise_seed)
         self._start_attempt()
@@ -353,6 +393,17 @@ class PileLoadingOperator:
         self._drive_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))  # backing off
         self._push_peak = 0.0
         self._eased = False
+        # crowd fill: the drive pressure while crowding in the face, while driving at the
+        # pile, and while crowding out of the face; the highest telescope reading in this
+        # push [MPa]; the boom angle where the pinned boom was freed [rad]; whether the
+        # bucket has bitten into the face
+        self._push_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))
+        self._approach_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))
+        self._roll_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))
+        self._rolling = False  # driving: rolling steadily at a pressure it is used to
+        self._face_peak = 0.0
+        self._free_from = 0.0
+        self._bitten = False
         self._light = False  # finishing: the scoop came up light, go again after backing off
         self._curled_back = False
         self._set_off = False  # backing off: the machine has started to roll back
@@ -369,6 +420,7 @@ class PileLoadingOperator:
         self._steps_to_decision = self.steps_per_decision - 1
         reading = {k: float(np.asarray(v).reshape(-1)[0]) for k, v in sensors.items()}
         if self._rest_boom is None:
+            self._free_telescope = reading["telescope_pressure"]
             self._rest_boom = reading["boom_angle"]
             self._rest_pitch = reading["boom_angle"] + reading["bucket_angle"]
         self._update_phase(reading)
@@ -393,7 +445,10 @@ class PileLoadingOperator:
             curled = reading["bucket_angle"] >= st.finish_bucket_angle_rad
             if risen >= st.fill_lift_rad or curled:
                 self.phase = "finish"
-                self._light = st.go_again and not curled
+                # a crowding operator brings the bucket up through the face before it curls
+                # back: its scoop is light if the bucket never bit into the face
+                light = not self._bitten if st.crowd_fill else not curled
+                self._light = st.go_again and light
 
     def _felt_impact(self, value: float) -> bool:
         """Impact: the trigger reading stays well above the level felt while driving.
@@ -415,6 +470,18 @@ class PileLoadingOperator:
         if above and self._above_s >= st.impact_hold_s - 1e-9:
             self._impact_reading = value
             return True
+        if st.crowd_fill and st.trigger_sensor == "drive_pressure":
+            # a crowding operator also feels the machine stop at the pile with its wheels
+            # turning: once rolling steadily at a pressure it is used to, the drive pressure
+            # comes well up and stays flat (on ice it tops out at what the tyres hold, below
+            # the rise it waits for)
+            self._approach_trace.append(value)
+            up = value - self._felt_level >= SPIN_RISE_FRACTION * st.impact_rise_mpa
+            if not self._rolling:
+                self._rolling = not up and self._steady(self._approach_trace, BACK_STEADY_S)
+            elif up and self._steady(self._approach_trace, STALL_WINDOW_S):
+                self._impact_reading = value
+                return True
         return False
 
     def _approach(self, reading: dict[str, float]) -> tuple[float, float, float]:
@@ -447,6 +514,8 @@ class PileLoadingOperator:
             if trigger > self._felt_level + 0.5 * (self._impact_reading - self._felt_level):
                 return (0.0, 0.0, 0.0)
             self._waiting = False
+        if st.crowd_fill:
+            return self._crowd_fill(reading)
         boom, bucket = reading["boom_angle"], reading["bucket_angle"]
         risen = boom - self._rest_boom
         pitch = boom + bucket - self._rest_pitch
@@ -480,6 +549,104 @@ class PileLoadingOperator:
         if self._action == "curl":
             return (0.0, st.curl, throttle if st.push_while_curling or self._eased else 0.0)
         return ((DIG_LIFT_FRACTION if self._pushing else 1.0) * st.lift, 0.0, throttle)
+
+    def _crowd_fill(self, reading: dict[str, float]) -> tuple[float, float, float]:
+        """Crowd fill (``OperatorStyle.crowd_fill``): keep pushing while the boom rises
+        through the face, so the mouth keeps passing through material.
+
+        - lift and push together while the edge is in the face (the telescope pressure
+          above its free reading); when the edge comes out, hold the boom and crowd it back
+          in, unless the machine rolls on freely (nothing left to bite: lift on);
+        - the boom pinned by the push (its relief valve open): foot off, keep lifting until
+          it has come up a step; if it does not come up (held down by the material on the
+          bucket), curl a step to break out;
+        - curl a step, the push kept on, when the bucket floor lags behind the boom's rise;
+        - the wheels slip (the push collapses while the pile still holds the bucket, or the
+          push tops out flat short of the drive's relief): ease the throttle and fill with
+          the wrist, lifting gently while curling.
+        """
+        st = self.style
+        drive, telescope = reading["drive_pressure"], reading["telescope_pressure"]
+        boom, bucket = reading["boom_angle"], reading["bucket_angle"]
+        risen = boom - self._rest_boom
+        pitch = boom + bucket - self._rest_pitch
+        wanted = st.curl_per_lift * risen  # the bucket-floor pitch this boom rise calls for
+        self._boom_trace.append(boom)
+        in_face = telescope >= self._free_telescope + FACE_CONTACT_MPA
+        self._bitten = self._bitten or in_face
+        pinned = reading["boom_pressure"] >= st.boom_stall_mpa
+        self._feel_slip(drive, telescope, in_face)
+
+        if self._action == "lift":
+            if pitch < wanted - st.curl_band_rad:
+                self._action, self._curl_from = "curl", pitch
+            elif pinned:
+                self._action, self._free_from = "free", boom
+                self._boom_trace.clear()
+        elif self._action == "free":  # foot off, lifting: until the boom has come up a step
+            if boom >= self._free_from + CROWD_LIFT_STEP_RAD:
+                self._crowd_again(drive, telescope)
+            elif self._boom_stalled():  # held down by the material on the bucket: break out
+                self._action, self._curl_from = "curl", pitch
+        else:  # curling a step
+            turned = pitch >= max(self._curl_from + st.curl_step_rad, wanted + st.curl_band_rad)
+            if turned or reading["bucket_pressure"] >= st.bucket_stall_mpa:
+                if pinned:  # broken out: lift a step before crowding in again
+                    self._action, self._free_from = "free", boom
+                    self._boom_trace.clear()
+                else:
+                    self._crowd_again(drive, telescope)
+
+        throttle = st.ease_throttle if self._eased else st.push_throttle
+        if self._action == "curl":
+            return (0.0, st.curl, 0.0 if pinned else throttle)
+        if self._action == "free":
+            return (st.lift, 0.0, 0.0)
+        if in_face:
+            self._roll_trace.clear()
+        else:  # out of the face: hold the boom and crowd the edge back in, unless the
+            # machine rolls on freely (the drive pressure steady): nothing left to bite
+            self._roll_trace.append(drive)
+            if not self._steady(self._roll_trace, BACK_STEADY_S):
+                return (0.0, 0.0, throttle)
+            return (st.lift, 0.0, throttle)
+        if self._eased:  # traction is the limit: fill with the wrist (lift while curling)
+            return (DIG_LIFT_FRACTION * st.lift, st.curl, throttle)
+        return (st.lift, 0.0, throttle)
+
+    def _feel_slip(self, drive: float, telescope: float, in_face: bool) -> None:
+        """Crowd fill: the wheels are felt to slip when the push collapses while the pile
+        still holds the bucket (when the edge comes out of the face, the telescope
+        pressure falls with the push), or when, crowding in the face, the push stays flat
+        short of the drive's relief (traction tops out before the machine stalls)."""
+        st = self.style
+        self._push_peak = max(self._push_peak, drive)
+        self._face_peak = max(self._face_peak, telescope)
+        if (
+            in_face
+            and drive < st.slip_drop_fraction * self._push_peak
+            and telescope >= st.slip_drop_fraction * self._face_peak
+        ):
+            self._eased = True
+        if self._action == "lift" and in_face:
+            self._push_trace.append(drive)
+            capped = max(self._push_trace) < TRACTION_CAP_FRACTION * DRIVE_RELIEF_MPA
+            if capped and self._steady(self._push_trace, STALL_WINDOW_S):
+                self._eased = True
+        else:
+            self._push_trace.clear()
+
+    def _crowd_again(self, drive: float, telescope: float) -> None:
+        """Crowd fill: back to lifting while pushing; the new push is felt anew."""
+        self._action = "lift"
+        self._push_peak, self._face_peak = drive, telescope
+        self._boom_trace.clear()
+
+    def _steady(self, trace: deque[float], window_s: float) -> bool:
+        """The last ``window_s`` of ``trace`` lie within ``BACK_STEADY_MPA``."""
+        window = self._steps(window_s)
+        recent = list(trace)[-window:]
+        return len(recent) >= window and max(recent) - min(recent) <= BACK_STEADY_MPA
 
     def _boom_stalled(self) -> bool:
         """The boom is felt to stall: lifting for ``STALL_WINDOW_S`` and it has not risen

@@ -1,0 +1,144 @@
+"""Crowd fill (``OperatorStyle.crowd_fill``, off by default): the expert keeps pushing
+while the boom rises through the face, so the bucket mouth keeps passing through material;
+every change is felt on the sensors."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from pilerl_pile_loader.operator import make_expert, sample_style
+from scoops import REST
+
+import pilerl  # noqa: F401  (registers pilerl/PileLoading-v0)
+
+DT = 0.05
+# in the face: the push heavy, the bucket pushed back (p_t well above its free 0.8 MPa)
+IN_FACE = {**REST, "drive_pressure": 18.0, "telescope_pressure": 4.0, "boom_pressure": 12.0}
+
+
+def crowding(**options: object):
+    """A nominal crowding operator that has felt the impact and crowds the face."""
+    operator = make_expert(dt=DT, crowd_fill=True, **options)
+    operator.act(REST)
+    impact = {**IN_FACE, "drive_pressure": 25.0}
+    for _ in range(6):
+        command = operator.act(impact)
+    assert operator.phase == "fill"
+    return operator, command
+
+
+def risen(reading: dict, rad: float) -> dict:
+    """``reading`` with the boom ``rad`` above rest and the bucket floor curled as far as
+    that rise calls for (``curl_per_lift`` 1.8: no curl is due)."""
+    return {**reading, "boom_angle": REST["boom_angle"] + rad, "bucket_angle": 0.45 + 0.8 * rad}
+
+
+def test_off_by_default_and_drawn_operators_are_the_same_but_for_it():
+    assert make_expert(dt=DT).style.crowd_fill is False
+    plain = sample_style(np.random.default_rng([0, 5]))
+    crowd = sample_style(np.random.default_rng([0, 5]), crowd_fill=True)
+    assert crowd == dataclasses.replace(plain, crowd_fill=True)
+    drawn = make_expert(dt=DT, rng=np.random.default_rng([0, 5]), crowd_fill="true")
+    assert drawn.style == crowd
+    with pytest.raises(ValueError, match="crowd_fill"):
+        make_expert(dt=DT, rng=np.random.default_rng(0), crowd_fill="sometimes")
+
+
+def test_it_lifts_and_pushes_together_while_the_boom_rises_through_the_face():
+    operator, command = crowding()
+    assert command[0] > 0 and command[1] == 0 and command[2] > 0
+    # past the nominal operator's push_lift_rad (0.08): still crowding the face
+    for rad in (0.1, 0.15, 0.2):
+        command = operator.act(risen(IN_FACE, rad))
+        assert command[0] > 0 and command[2] == pytest.approx(operator.style.push_throttle)
+    nominal = make_expert(dt=DT)
+    nominal.act(REST)
+    for _ in range(3):
+        nominal.act({**IN_FACE, "drive_pressure": 25.0})
+    assert nominal.act(risen(IN_FACE, 0.2))[2] == 0  # the nominal one stopped pushing
+
+
+def test_out_of_the_face_it_holds_the_boom_and_crowds_back_in_unless_it_rolls_freely():
+    operator, _ = crowding()
+    out = risen({**IN_FACE, "telescope_pressure": 0.8, "boom_pressure": 6.0}, 0.1)
+    commands = []
+    for step in range(20):  # the push relaxes, then the machine rolls on steadily
+        commands.append(operator.act({**out, "drive_pressure": max(5.0, 15.0 - 2.0 * step)}))
+    assert commands[0].tolist() == [0.0, 0.0, pytest.approx(operator.style.push_throttle)]
+    assert commands[-1][0] > 0 and commands[-1][2] > 0  # nothing to bite: lifts on
+    assert operator.act(risen(IN_FACE, 0.1))[0] > 0  # in the face again: lifts and pushes
+
+
+def test_a_boom_pinned_by_the_push_comes_up_a_step_with_the_foot_off():
+    operator, _ = crowding()
+    pinned = risen({**IN_FACE, "drive_pressure": 25.0, "boom_pressure": 20.0}, 0.05)
+    command = operator.act(pinned)
+    assert command[0] > 0 and command[1] == 0 and command[2] == 0  # foot off, lifting
+    command = operator.act(risen({**pinned, "boom_pressure": 14.0}, 0.09))  # came up
+    assert command[0] > 0 and command[2] > 0  # crowding again
+    operator.act(pinned)
+    commands = [operator.act(pinned) for _ in range(10)]  # the boom does not come up
+    assert commands[-1][0] == 0 and commands[-1][1] > 0 and commands[-1][2] == 0  # breaks out
+
+
+def test_when_the_wheels_slip_it_eases_off_and_fills_with_the_wrist():
+    operator, _ = crowding()
+    operator.act(risen({**IN_FACE, "drive_pressure": 24.0}, 0.05))
+    slipping = risen({**IN_FACE, "drive_pressure": 8.0}, 0.06)  # the push collapses ...
+    command = operator.act(slipping)  # ... while the pile still holds the bucket
+    assert command[0] > 0 and command[1] > 0
+    assert command[2] == pytest.approx(operator.style.ease_throttle)
+    # on ice the push tops out flat, short of the drive's relief: the same
+    capped, _ = crowding()
+    for _ in range(8):
+        command = capped.act(risen({**IN_FACE, "drive_pressure": 13.0}, 0.05))
+    assert command[1] > 0 and command[2] == pytest.approx(capped.style.ease_throttle)
+
+
+def test_the_scoop_is_light_only_if_the_bucket_never_bit_into_the_face():
+    operator, _ = crowding()
+    operator.act(risen(IN_FACE, 0.31))  # came up through the face, floor not curled back
+    assert operator.phase == "finish"
+    assert operator.act(risen(IN_FACE, 0.31))[1] > 0  # curls back: a loaded scoop
+    jumpy = make_expert(dt=DT, crowd_fill=True, jumpy=True, impact_hold_s=0.0)
+    jumpy.act(REST)
+    surge = {**REST, "drive_pressure": 9.0}  # the set-off surge, far from the pile
+    jumpy.act(surge)
+    assert jumpy.phase == "fill"
+    jumpy.act(risen(surge, 0.31))
+    assert jumpy.phase == "finish" and jumpy.act(risen(surge, 0.31))[2] < 0  # backs off ...
+    assert jumpy._light  # ... to go again
+
+
+def test_on_the_mouth_intake_it_fills_a_summer_scoop_the_nominal_expert_does_not():
+    env = gym.make("pilerl/PileLoading-v0", sensor_noise=0.0, soil_options={"intake": "mouth"})
+    fills = {}
+    for crowd in (False, True):
+        operator = make_expert(dt=float(env.unwrapped.dt), crowd_fill=crowd)
+        obs, _ = env.reset(seed=0)
+        while True:
+            obs, _, terminated, truncated, info = env.step(operator.act(obs))
+            if terminated or truncated:
+                break
+        fills[crowd] = (info["fill_fraction"], info["success"])
+    env.close()
+    assert not fills[False][1] and fills[False][0] < 0.5  # 0.48 when written
+    assert fills[True][1] and fills[True][0] >= fills[False][0] + 0.03  # 0.54
+
+
+def test_driving_it_feels_the_machine_stop_with_its_wheels_spinning():
+    """On ice the drive pressure tops out at what the tyres hold, short of the impact
+    rise: a crowding operator feels the machine stopped (the pressure well up and flat)."""
+    spinning = {**REST, "drive_pressure": REST["drive_pressure"] + 5.0}  # nominal rise: 7
+    phases = {}
+    for crowd in (False, True):
+        operator = make_expert(dt=DT, crowd_fill=crowd)
+        for _ in range(20):
+            operator.act(REST)
+        for _ in range(12):  # 0.6 s against the pile
+            operator.act(spinning)
+        phases[crowd] = operator.phase
+    assert phases == {False: "approach", True: "fill"}
