@@ -30,7 +30,6 @@ scores the labels).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import time
 
@@ -38,6 +37,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
+from pilerl_pile_loader.conditions import overrides_argument  # noqa: E402
 from pilerl_pile_loader.operator import make_expert  # noqa: E402
 
 import pilerl  # noqa: E402,F401  (registers the simulator)
@@ -96,17 +96,6 @@ def soil_options(pairs: list[str], flag: str = "--soil-option") -> dict[str, obj
             except ValueError:
                 options[key] = text
     return options
-
-
-def condition_overrides(text: str) -> dict:
-    """``--overrides`` JSON as the simulator's ``condition_overrides``."""
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as error:
-        raise argparse.ArgumentTypeError(f"not JSON: {error}") from None
-    if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError("expected a JSON object {part: {field: value}}")
-    return value
 
 
 def record(kind: str, args: argparse.Namespace) -> dict:
@@ -189,7 +178,7 @@ def main() -> None:
     )
     parser.add_argument(
         "--overrides",
-        type=condition_overrides,
+        type=overrides_argument,
         default=None,
         help='condition overrides as JSON, e.g. \'{"material": {"cohesion_pa": 0}}\'',
     )

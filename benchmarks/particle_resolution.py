@@ -275,22 +275,14 @@ def expert_options(texts: list[str], parser: argparse.ArgumentParser) -> dict:
     return style
 
 
-def condition_overrides(text: str) -> dict:
-    """``--overrides``: condition overrides as JSON, checked before anything runs."""
-    from pilerl_pile_loader.conditions import parse_overrides
-
-    try:
-        return parse_overrides(text)
-    except ValueError as error:
-        raise argparse.ArgumentTypeError(str(error)) from None
-
-
 def contact_modulus(text: str) -> float | None:
     """``--contact-modulus``: a number [Pa] or ``none``."""
     return None if text.lower() == "none" else float(text)
 
 
 def main() -> None:
+    from pilerl_pile_loader.conditions import overrides_argument
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--mouth-grains", type=float, nargs="+", default=[4.0, 6.0, 8.0])
     parser.add_argument("--seeds", type=int, default=4, help="seeded scoops per row")
@@ -337,7 +329,7 @@ def main() -> None:
     )
     parser.add_argument(
         "--overrides",
-        type=condition_overrides,
+        type=overrides_argument,
         default=None,
         help='condition overrides of every soil (JSON), e.g. \'{"material": {"cohesion_pa": 0}}\'',
     )

@@ -134,25 +134,17 @@ def table(label: str, results: dict[str, dict[str, float]]) -> list[str]:
     return lines
 
 
-def condition_overrides(text: str) -> dict:
-    """``--overrides``: condition overrides as JSON, checked before anything runs (imported
-    here, not at the top: a ``--baseline`` checkout imports this module with its own code)."""
-    from pilerl_pile_loader.conditions import parse_overrides
-
-    try:
-        return parse_overrides(text)
-    except ValueError as error:
-        raise argparse.ArgumentTypeError(str(error)) from None
-
-
 def main() -> None:
+    # imported here, not at the top: a --baseline checkout imports this module with its code
+    from pilerl_pile_loader.conditions import overrides_argument
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--baseline", type=Path, help="checkout to measure as BEFORE")
     parser.add_argument("--starts", type=int, default=6, help="seeded starts per condition")
     parser.add_argument("--conditions", nargs="+", default=list(CONDITIONS))
     parser.add_argument("--soil", choices=("heightfield", "particles"), default="heightfield")
     parser.add_argument(
-        "--overrides", type=condition_overrides, default=None, help="condition overrides (JSON)"
+        "--overrides", type=overrides_argument, default=None, help="condition overrides (JSON)"
     )
     args = parser.parse_args()
     if args.baseline is not None and (args.soil != "heightfield" or args.overrides):

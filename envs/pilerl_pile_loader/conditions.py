@@ -311,3 +311,14 @@ def parse_overrides(text: str) -> dict[str, dict[str, float]]:
                 raise ValueError(f"condition overrides {part}.{name}: not a number: {value!r}")
     CONDITIONS["summer"].with_overrides(overrides)
     return overrides
+
+
+def overrides_argument(text: str) -> dict[str, dict[str, float]]:
+    """``parse_overrides`` as an argparse ``type``: a bad text is a parser error that names
+    the problem (argparse hides a plain ``ValueError``'s message)."""
+    import argparse
+
+    try:
+        return parse_overrides(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None

@@ -2,8 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+
 import pytest
-from pilerl_pile_loader.conditions import CONDITIONS, get_condition, parse_overrides
+from pilerl_pile_loader.conditions import (
+    CONDITIONS,
+    get_condition,
+    overrides_argument,
+    parse_overrides,
+)
 
 
 def test_paper_conditions_exist():
@@ -67,3 +74,13 @@ def test_overrides_from_a_command_line_are_parsed():
 def test_bad_overrides_from_a_command_line_fail_naming_the_problem(text, message):
     with pytest.raises(ValueError, match=message):
         parse_overrides(text)
+
+
+def test_a_command_line_s_bad_overrides_are_a_parser_error_naming_the_field():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--overrides", type=overrides_argument)
+    assert parser.parse_args(["--overrides", '{"ground": {"tyre_friction": 0.3}}']).overrides == {
+        "ground": {"tyre_friction": 0.3}
+    }
+    with pytest.raises(argparse.ArgumentTypeError, match="tyre_frictio"):
+        overrides_argument('{"ground": {"tyre_frictio": 0.3}}')
