@@ -38,6 +38,7 @@ Particles, second table (one row per resolution):
     python benchmarks/particle_resolution.py --contact-modulus 5e7  # material-set stiffness
     python benchmarks/particle_resolution.py --contact-modulus 5e7 --bevelled-edge --seeds 2
     python benchmarks/particle_resolution.py --zone-scale 1.3 --mouth-grains 4 6  # larger zone
+    python benchmarks/particle_resolution.py --mouth-grains 6 --condition winter_a --no-cohesion
     python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
     python benchmarks/particle_resolution.py --penetration --seeds 3     # push tests
 
@@ -296,6 +297,11 @@ def main() -> None:
         help="particle digging zone scale (extent, half width, active depth; default 1)",
     )
     parser.add_argument(
+        "--no-cohesion",
+        action="store_true",
+        help="loose grains whatever the material's cohesion (particle soil option cohesion)",
+    )
+    parser.add_argument(
         "--intake-only", action="store_true", help="only the heightfield, every condition"
     )
     parser.add_argument(
@@ -349,7 +355,7 @@ def main() -> None:
     print(
         f"\nparticles, {iterations} CG iterations per physics step, contact time constant "
         f"{timeconst} s, contact modulus {modulus}, bevelled edge {args.bevelled_edge}, "
-        f"zone scale {args.zone_scale or 1.0}, "
+        f"zone scale {args.zone_scale or 1.0}, cohesion {not args.no_cohesion}, "
         f"the same {n} starts"
     )
     header = (
@@ -371,6 +377,8 @@ def main() -> None:
             options["contact_timeconst_s"] = args.contact_timeconst
         if args.zone_scale is not None:
             options["zone_scale"] = args.zone_scale
+        if args.no_cohesion:
+            options["cohesion"] = False
         p, build_s, env = run_scoops(seeds, condition, soil="particles", soil_options=options)
         soil = env.unwrapped.soil
         count = f"{soil.n_particles}+{len(soil.core)}"
