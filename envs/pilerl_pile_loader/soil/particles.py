@@ -70,12 +70,11 @@ pile (grains, walls, and the static core, moved to its own bit ``COHESIVE_CORE_C
 and a copy of it on a welded, massless child body (``{name}_unbonded``) touches only the
 machine and the ground. Cost: MuJoCo computes each body transmission over all contact
 rows, so the bonds cost per step in proportion to awake grains times contacts (a prototype
-of the cut test, 738
-awake grains: 10.3 -> 20.6 ms per step; the nominal expert digs 1.5-1.7 times slower on
-winter_a and winter_c), and compiling takes ~96 B per bond and degree of
-freedom of arena (``bond_arena_bytes``); bonded grains are allowed to sleep (MuJoCo keeps
-actuated bodies awake by default). Option ``cohesion=False`` keeps the grains loose; at
-c = 0 the model is the loose one, bit for bit.
+of the cut test, 738 awake grains: 10.3 -> 20.6 ms per step; the nominal expert digs
+1.5-1.7 times slower on winter_a and winter_c), and compiling takes ~96 B of arena per
+bond and degree of freedom (``bond_arena_bytes``); bonded grains are allowed to sleep
+(MuJoCo keeps actuated bodies awake by default). Option ``cohesion=False`` keeps the
+grains loose; at c = 0 the model is the loose one, bit for bit.
 
 **Contact stiffness.** MuJoCo's soft contacts are normalised by mass: at rest under a
 normal force F a grain of mass m sinks ``(1 - d) tau^2 F / (c m)`` into what it touches
