@@ -38,16 +38,18 @@ Particles, second table (one row per resolution):
     python benchmarks/particle_resolution.py --contact-modulus 5e7  # material-set stiffness
     python benchmarks/particle_resolution.py --contact-modulus 5e7 --bevelled-edge --seeds 2
     python benchmarks/particle_resolution.py --zone-scale 1.3 --mouth-grains 4 6  # larger zone
+    python benchmarks/particle_resolution.py --mouth-grains 6 --condition winter_a --no-cohesion
     python benchmarks/particle_resolution.py --intake-only --seeds 16   # every condition
     python benchmarks/particle_resolution.py --penetration --seeds 3     # push tests
     python benchmarks/particle_resolution.py --mouth-grains 6 --condition winter_a \
-        --overrides '{"material": {"cohesion_pa": 0}}'   # the particles' loose material
+        --overrides '{"material": {"cohesion_pa": 0}}'   # both soils without cohesion
 
 ``--overrides`` (JSON, as the env's ``condition_overrides``) changes the condition's
-physical values on every soil of the run, in every mode. The particle pile has no cohesion
-(its grains are loose), while every winter preset's material is cohesive (2-6 kPa): to
-compare the two soils on the same material, give the heightfield the particles' material
-with ``{"material": {"cohesion_pa": 0}}`` (docs/soil_models.md, "Cohesion").
+physical values on every soil of the run, in every mode: ``{"material": {"cohesion_pa":
+0}}`` gives both soils the winter preset's material without its cohesion (2-6 kPa).
+``--no-cohesion`` keeps only the particle pile's grains loose (its soil option
+``cohesion``), the pile as it was before session 29 (docs/soil_models.md, "Comparing the
+two soils on the same material" and "Cohesion").
 
 ``--intake-only`` prints only the heightfield table, for every condition preset (the
 expert's fill and success with either intake, without and with ``body_resistance``; no
@@ -314,6 +316,11 @@ def main() -> None:
         help="particle digging zone scale (extent, half width, active depth; default 1)",
     )
     parser.add_argument(
+        "--no-cohesion",
+        action="store_true",
+        help="loose grains whatever the material's cohesion (particle soil option cohesion)",
+    )
+    parser.add_argument(
         "--intake-only", action="store_true", help="only the heightfield, every condition"
     )
     parser.add_argument(
@@ -383,7 +390,7 @@ def main() -> None:
     print(
         f"\nparticles, {iterations} CG iterations per physics step, contact time constant "
         f"{timeconst} s, contact modulus {modulus}, bevelled edge {args.bevelled_edge}, "
-        f"zone scale {args.zone_scale or 1.0}, "
+        f"zone scale {args.zone_scale or 1.0}, cohesion {not args.no_cohesion}, "
         f"the same {n} starts"
     )
     header = (
@@ -405,6 +412,8 @@ def main() -> None:
             options["contact_timeconst_s"] = args.contact_timeconst
         if args.zone_scale is not None:
             options["zone_scale"] = args.zone_scale
+        if args.no_cohesion:
+            options["cohesion"] = False
         p, build_s, env = run_scoops(
             seeds, condition, soil="particles", soil_options=options, condition_overrides=overrides
         )

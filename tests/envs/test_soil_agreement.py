@@ -1,8 +1,8 @@
 """The heightfield against the particle pile on the same material (docs/soil_models.md,
 "Comparing the two soils on the same material").
 
-The particle pile's grains are loose; the heightfield's FEE charges the material's
-cohesion. On a loose material (summer's dry gravel) the heightfield's mouth intake, which
+On a loose material (summer's dry gravel, no cohesion on either soil) the heightfield's
+mouth intake, which
 admits only what the bucket mouth sweeps, fills the scripted expert's scoop as the particle
 pile does (0.48 and 0.47 on seed 0), where the default footprint intake fills it to the
 cap (1.10). On a cohesive material (winter_a's wet gravel, 4 kPa) the mouth intake fills

@@ -3,7 +3,7 @@
 No earthmoving equation and no soil actuators: cutting resistance, intake, heaping and
 spill all come out of MuJoCo's contact solver. It is slower than ``heightfield.py``; it is
 meant to cross-check the fast model's fills and forces, not to train on. Cohesion
-(``Material.cohesion_pa``) is not represented: the grains are loose.
+(``Material.cohesion_pa``) bonds the grains (below, "Cohesion"); at c = 0 they are loose.
 
 **Resolution.** Granular flow through an opening jams when the opening spans only a few
 grain diameters, so the grain size is set by the bucket mouth (cutting edge to top lip,
@@ -26,6 +26,55 @@ The particle friction is ``PARTICLE_FRICTION_RATIO x tan(friction angle)``: non-
 spheres in a packing are stronger than their contact friction; with this ratio the
 close-packed face stands at the angle of repose and a collapsing block of them runs out to
 ~33 deg for dry gravel's 38 deg (slump test).
+
+**Cohesion.** Each grain of a cohesive material (c > 0) carries a MuJoCo adhesion force: an
+actuator with a body transmission (``add_grain``, ``{name}_bond``) whose force G is a
+constant bias, so it needs no control. MuJoCo spreads it evenly over the body's n contacts
+and pulls each closed along its normal (the actuator's moment is minus the mean of the
+contact normals' Jacobians; with the pyramidal cone, the mean of a contact's four edges is
+its normal), so a grain-grain contact is held by G/n_a + G/n_b and the bond forces around a
+grain sum to about 2 G whatever its coordination number k (exactly, where the neighbours
+have as many contacts). The bond strength G comes from soil mechanics, not from fills:
+
+- Rumpf (1958, Chem. Ing. Tech. 30: 144): a packing of spheres of diameter D, porosity
+  eps and k bonds of force F per sphere breaks in tension at
+  sigma_t = (1 - eps) k F / (pi D^2); here k F = 2 G, so sigma_t = 2 (1 - eps) G / (pi D^2);
+- Mohr-Coulomb's uniaxial tensile strength (its envelope, no tension cut-off):
+  sigma_t = 2 c cos phi / (1 + sin phi) = 2 c tan(45 deg - phi / 2);
+- so G = pi D^2 sigma_t / (2 (1 - eps)) = pi D^2 c tan(45 deg - phi / 2) / (1 - eps)
+  (``bond_force_n``), with 1 - eps = 0.7405, the grains' close-packed lattice. G scales
+  with D^2, so the packing's strength is the same at every resolution. At the default
+  resolution (10.7 cm) winter_c's c = 2000 Pa gives G = 52 N (3.7 grain weights),
+  winter_a's 4000 Pa 103 N.
+
+Assumptions: the bonds are brittle and have no range (MuJoCo makes a contact only while
+the spheres overlap: no margin or gap, so a bond holds while grains touch and is gone once
+they part); the packing is isotropic (Rumpf); the shear strength is not set separately: it
+is the grains' friction on the bonds' extra normal force. Where the derivation's
+approximations land is checked without the bucket, against Terzaghi's critical height of
+an unsupported vertical cut, H_c = 4 c / (gamma g) tan(45 deg + phi / 2)
+(``particle_cut.py``, tests/envs/test_particle_cohesion.py, docs/soil_models.md): faces of
+winter_c's grains (H_c 0.97 m) of 0.48, 0.74 and 0.92 H_c stand for 1.5 s, 1.19 H_c starts
+to fail and 1.46 H_c collapses; loose, 0.48 H_c slumps. So ``COHESION_CALIBRATION`` is 1
+(no factor). MuJoCo's soft friction lets a loaded face creep (0.74 H_c: 6 cm in 4 s;
+0.92 H_c falls within 4 s), and 8 cm grains fail a little lower (0.96 H_c within 1.5 s).
+A grain with few contacts holds each harder (a pair of free grains: 2 G).
+
+Nothing bonds to the steel or to the ground: cohesion is the soil's strength against
+itself; soil-tool adhesion is a separate property, which the heightfield's cutting force
+(no adhesion term) leaves out too, and the ground is the site's firm floor, which a bucket
+scrapes clean (bonded to it, a grain under the cutting edge could not get away: pinched
+between the plate and the ground, winter_c seed 1 shot one 2 m high). MuJoCo's body
+adhesion acts on every contact of its body, so a cohesive grain's sphere touches only the
+pile (grains, walls, and the static core, moved to its own bit ``COHESIVE_CORE_CONTYPE``)
+and a copy of it on a welded, massless child body (``{name}_unbonded``) touches only the
+machine and the ground. Cost: MuJoCo computes each body transmission over all contact
+rows, so the bonds cost per step in proportion to awake grains times contacts (a prototype
+of the cut test, 738 awake grains: 10.3 -> 20.6 ms per step; the nominal expert digs
+1.5-1.7 times slower on winter_a and winter_c), and compiling takes ~96 B of arena per
+bond and degree of freedom (``bond_arena_bytes``); bonded grains are allowed to sleep
+(MuJoCo keeps actuated bodies awake by default). Option ``cohesion=False`` keeps the
+grains loose; at c = 0 the model is the loose one, bit for bit.
 
 **Contact stiffness.** MuJoCo's soft contacts are normalised by mass: at rest under a
 normal force F a grain of mass m sinks ``(1 - d) tau^2 F / (c m)`` into what it touches
@@ -206,6 +255,26 @@ VOLUME_GRID_M = 0.01  # grid step of the zone-volume integral [m]
 FILL_MEASURES = ("count", "volume")  # the default first
 VOLUME_CELL_M = 0.02  # column size of the load's bulk volume (fill_measure="volume") [m]
 COVER_RADIUS_RATIO = 2.0 / math.sqrt(3.0)  # disks of this x radius cover a packed layer
+# ---- cohesion (module docstring, "Cohesion")
+HCP_SOLID_FRACTION = math.pi / (3.0 * math.sqrt(2.0))  # 1 - porosity of the grains' lattice
+# the bond force that stands a vertical cut of Terzaghi's height, over the Rumpf / Mohr-Coulomb
+# estimate (bond_force_n): measured by tests/envs/test_particle_cohesion.py
+COHESION_CALIBRATION = 1.0
+# collision bits of a cohesive pile: its grains' soil geoms touch grains, core and walls
+# (bonded); their unbonded copies touch the machine and the ground (assets/wheel_loader.xml:
+# machine contype 2, ground contype / conaffinity 1); the core moves to its own bit
+COHESIVE_GRAIN_CONTYPE = 8
+COHESIVE_CORE_CONTYPE = 16
+COHESIVE_GRAIN_CONAFFINITY = WALL_CONTYPE | COHESIVE_GRAIN_CONTYPE | COHESIVE_CORE_CONTYPE
+MACHINE_CONTYPE = 2
+GROUND_CONTYPE = 1
+UNBONDED_CONAFFINITY = MACHINE_CONTYPE | GROUND_CONTYPE
+COHESIVE_CORE_CONAFFINITY = MACHINE_CONTYPE  # the machine still meets the core
+UNBONDED_MASS_KG = 1e-6  # the unbonded copy's welded child body
+# MuJoCo's arena per bond actuator and degree of freedom of the model [B]: compiling the
+# model takes three 3 x nv Jacobians and two nv vectors on the stack per body-transmission
+# actuator (a 320-grain model ran out at ~70 B; stepping needs far less)
+BOND_ARENA_BYTES_PER_DOF = 96
 
 
 class ParticleSoil(SoilModel):
@@ -231,6 +300,7 @@ class ParticleSoil(SoilModel):
         contact_modulus_pa: float | None = None,
         bevelled_edge: bool = False,
         zone_scale: float = 1.0,
+        cohesion: bool = True,
     ) -> None:
         """Options (``soil_options`` of the env), the resolution:
 
@@ -265,6 +335,9 @@ class ParticleSoil(SoilModel):
           and its active depth (``PARTICLE_ZONE_DEPTH_M``, ``PARTICLE_ZONE_HALF_WIDTH_M``,
           ``ACTIVE_DEPTH_M``); above 1 the grains the bucket pushes meet the zone's walls
           and the static core later, at the cost of more grains.
+        - ``cohesion``: ``True`` (default): the material's ``cohesion_pa`` bonds the grains
+          (module docstring, "Cohesion"); ``False``: loose grains whatever the material
+          (the pile as it was before cohesion was represented, for comparison).
         """
         super().__init__(material, pile, bucket)
         if not (isinstance(max_particles, int) and 20 <= max_particles <= 5000):
@@ -318,6 +391,9 @@ class ParticleSoil(SoilModel):
                 f"ParticleSoil.zone_scale: must be a number in [0.5, 2], got {zone_scale!r}"
             )
         self.zone_scale = float(zone_scale)
+        if not isinstance(cohesion, bool):
+            raise ValueError(f"ParticleSoil.cohesion: must be true or false, got {cohesion!r}")
+        self.cohesion = cohesion
         self.active_depth_m = ACTIVE_DEPTH_M * self.zone_scale
         self.fill_measure = fill_measure
         self.contact_timeconst_s = float(contact_timeconst_s)
@@ -361,21 +437,23 @@ class ParticleSoil(SoilModel):
         if self.bevelled_edge:
             _add_bevel(spec)
             bucket_geoms = (*BUCKET_GEOMS, "bucket_bevel")
+        self.bond_force_n = (
+            bond_force_n(
+                self.material.cohesion_pa, self.material.friction_angle_deg, 2.0 * self.radius_m
+            )
+            if self.cohesion
+            else 0.0
+        )
         for i, position in enumerate(self.lattice):
-            body = spec.worldbody.add_body(name=f"particle_{i}", pos=position.tolist())
-            for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
-                body.add_joint(type=mujoco.mjtJoint.mjJNT_SLIDE, axis=list(axis))
-            body.add_geom(
-                type=mujoco.mjtGeom.mjGEOM_SPHERE,
-                size=[self.radius_m, 0.0, 0.0],
-                mass=self.particle_mass_kg,
-                contype=PARTICLE_CONTYPE,
-                conaffinity=PARTICLE_CONAFFINITY,
-                condim=CONTACT_CONDIM,
-                priority=PARTICLE_PRIORITY,
-                friction=[friction, 0.0, 0.0],
-                rgba=list(PARTICLE_RGBA),
-                **grain_contact,
+            add_grain(
+                spec,
+                f"particle_{i}",
+                position,
+                self.radius_m,
+                self.particle_mass_kg,
+                friction,
+                grain_contact,
+                self.bond_force_n,
             )
         walls = self._add_walls(spec, friction, grain_contact)
         for i, position in enumerate(self.core):
@@ -384,8 +462,8 @@ class ParticleSoil(SoilModel):
                 type=mujoco.mjtGeom.mjGEOM_SPHERE,
                 pos=position.tolist(),
                 size=[self.radius_m, 0.0, 0.0],
-                contype=CORE_CONTYPE,
-                conaffinity=0,
+                contype=COHESIVE_CORE_CONTYPE if self.bond_force_n > 0 else CORE_CONTYPE,
+                conaffinity=COHESIVE_CORE_CONAFFINITY if self.bond_force_n > 0 else 0,
                 condim=CONTACT_CONDIM,
                 priority=PARTICLE_PRIORITY,
                 friction=[friction, 0.0, 0.0],
@@ -403,7 +481,11 @@ class ParticleSoil(SoilModel):
             for key, value in bucket_contact.items():
                 setattr(geom, key, value)
 
-        spec.memory = max(spec.memory, ARENA_BYTES_PER_GRAIN * len(sites))
+        spec.memory = max(
+            spec.memory,
+            ARENA_BYTES_PER_GRAIN * len(sites)
+            + bond_arena_bytes(self.n_particles if self.bond_force_n > 0 else 0, len(sites)),
+        )
         option = spec.option
         option.solver = SOLVER
         option.cone = CONE
@@ -587,7 +669,9 @@ class ParticleSoil(SoilModel):
     def bind(self, model: mujoco.MjModel, data: mujoco.MjData, machine: Machine) -> None:
         self.model, self.data, self.machine = model, data, machine
         first = model.body("particle_0").id
-        self._bodies = slice(first, first + self.n_particles)
+        # a cohesive grain's steel proxy is a child body, numbered right after its grain
+        stride = 2 if self.bond_force_n > 0 else 1
+        self._bodies = slice(first, first + stride * self.n_particles, stride)
         joint = int(model.body_jntadr[first])
         qpos0, dof0 = int(model.jnt_qposadr[joint]), int(model.jnt_dofadr[joint])
         self._qpos = slice(qpos0, qpos0 + 3 * self.n_particles)
@@ -850,6 +934,92 @@ class ParticleSoil(SoilModel):
         if self._depth_m is None:
             self._depth_m = self._edge_depth(*self._depth_inputs)
         return self._depth_m
+
+
+def bond_force_n(
+    cohesion_pa: float,
+    friction_angle_deg: float,
+    diameter_m: float,
+    solid_fraction: float = HCP_SOLID_FRACTION,
+) -> float:
+    """The adhesive force G [N] each grain of diameter ``diameter_m`` pulls its contacts with
+    (module docstring, "Cohesion"): Mohr-Coulomb's uniaxial tensile strength
+    sigma_t = 2 c tan(45 deg - phi / 2) for cohesion ``cohesion_pa`` and friction angle
+    ``friction_angle_deg``, carried by Rumpf's bonds, sigma_t = (1 - eps) k F / (pi D^2),
+    where MuJoCo's body adhesion makes the bonds around a grain sum to k F = 2 G:
+    G = pi D^2 sigma_t / (2 (1 - eps)); times ``COHESION_CALIBRATION``. 0 for c = 0."""
+    if not cohesion_pa >= 0.0:
+        raise ValueError(f"bond_force_n: cohesion must be >= 0 Pa, got {cohesion_pa!r}")
+    tensile_pa = 2.0 * cohesion_pa * math.tan(math.radians(45.0 - friction_angle_deg / 2.0))
+    return COHESION_CALIBRATION * math.pi * diameter_m**2 * tensile_pa / (2.0 * solid_fraction)
+
+
+def bond_arena_bytes(n_bonds: int, n_grains: int) -> int:
+    """MuJoCo arena [B] that ``n_bonds`` bond actuators need on top of the contacts' in a
+    model of ``n_grains`` spheres on slide joints (plus the machine's few dofs): compiling
+    takes Jacobians over every degree of freedom on the stack, per body transmission."""
+    return n_bonds * BOND_ARENA_BYTES_PER_DOF * (3 * n_grains + 64)
+
+
+def add_grain(
+    spec: mujoco.MjSpec,
+    name: str,
+    position: np.ndarray,
+    radius_m: float,
+    mass_kg: float,
+    friction: float,
+    contact: dict[str, list[float]],
+    bond_n: float = 0.0,
+) -> mujoco.MjsBody:
+    """A grain: a sphere on three slide joints (x, y, z) in ``spec``'s world body.
+
+    Loose (``bond_n`` 0): one geom that touches other grains, the core, the walls, the
+    ground and the machine. Cohesive (``bond_n`` > 0 [N], ``bond_force_n``): the grain's
+    geom touches only the pile (grains, the core with ``COHESIVE_CORE_CONTYPE``, walls), an
+    adhesion actuator (``{name}_bond``, body transmission, a constant force ``bond_n`` that
+    needs no control) pulls the body's contacts closed, and a copy of the sphere on a
+    child body (``{name}_unbonded``, welded to it) touches only the machine and the
+    ground, so that MuJoCo's body adhesion, which acts on every contact of its body,
+    leaves the steel and the site's floor alone."""
+    body = spec.worldbody.add_body(name=name, pos=list(map(float, position)))
+    if bond_n > 0.0:  # MuJoCo keeps actuated bodies awake unless they are allowed to sleep
+        body.sleep = mujoco.mjtSleepPolicy.mjSLEEP_ALLOWED
+    for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
+        body.add_joint(type=mujoco.mjtJoint.mjJNT_SLIDE, axis=list(axis))
+    geom = {
+        "type": mujoco.mjtGeom.mjGEOM_SPHERE,
+        "size": [radius_m, 0.0, 0.0],
+        "condim": CONTACT_CONDIM,
+        "priority": PARTICLE_PRIORITY,
+        "friction": [friction, 0.0, 0.0],
+        "rgba": list(PARTICLE_RGBA),
+        **contact,
+    }
+    if not bond_n > 0.0:
+        body.add_geom(
+            mass=mass_kg, contype=PARTICLE_CONTYPE, conaffinity=PARTICLE_CONAFFINITY, **geom
+        )
+        return body
+    body.add_geom(
+        mass=mass_kg,
+        contype=COHESIVE_GRAIN_CONTYPE,
+        conaffinity=COHESIVE_GRAIN_CONAFFINITY,
+        **geom,
+    )
+    unbonded = body.add_body(name=f"{name}_unbonded")
+    unbonded.add_geom(
+        mass=UNBONDED_MASS_KG,
+        contype=0,
+        conaffinity=UNBONDED_CONAFFINITY,
+        group=WALL_GROUP,
+        **geom,
+    )
+    bond = spec.add_actuator(name=f"{name}_bond", target=name)
+    bond.trntype = mujoco.mjtTrn.mjTRN_BODY
+    bond.gainprm[0] = 0.0
+    bond.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+    bond.biasprm[0] = bond_n  # force = bias: always on, whatever the control
+    return body
 
 
 def contact_parameters(
