@@ -94,8 +94,13 @@ def scoop(env: gym.Env, seed: int) -> dict[str, float]:
     """One scripted scoop from a seeded start; the maxima read at every control step."""
     sim = env.unwrapped
     soil, model, data = sim.soil, sim.model, sim.data
-    first = model.body_geomadr[soil._bodies.start]
-    grains = np.arange(first, first + soil.n_particles)
+    # every grain's geoms: a bonded grain's plate and ground contacts are on its unbonded
+    # copy, a child body (particles.add_grain), so take the grain bodies and their children
+    grain_bodies = np.arange(model.nbody)[soil._bodies]
+    of_a_grain = np.isin(np.arange(model.nbody), grain_bodies) | np.isin(
+        model.body_parentid, grain_bodies
+    )
+    grains = np.flatnonzero(of_a_grain[model.geom_bodyid])
     plates = np.array([model.geom(name).id for name in BUCKET_GEOMS])
     ground = np.array([model.geom("ground").id])
     obs, _ = env.reset(seed=seed)

@@ -174,6 +174,11 @@ class OperatorStyle:
     crowd_fill: bool = False
 
     def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.type in (bool, "bool") and not isinstance(getattr(self, f.name), bool):
+                raise ValueError(
+                    f"OperatorStyle.{f.name}: must be true or false, got {getattr(self, f.name)!r}"
+                )
         if self.trigger_sensor not in TRIGGER_SENSORS:
             raise ValueError(
                 f"OperatorStyle.trigger_sensor: must be one of {TRIGGER_SENSORS}, "

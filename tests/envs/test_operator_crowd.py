@@ -142,3 +142,10 @@ def test_driving_it_feels_the_machine_stop_with_its_wheels_spinning():
             operator.act(spinning)
         phases[crowd] = operator.phase
     assert phases == {False: "approach", True: "fill"}
+
+
+@pytest.mark.parametrize("value", ["false", "no", 1])
+def test_a_crowd_fill_that_is_not_true_or_false_fails_naming_the_field(value):
+    # a string from a command line ("no") would be truthy: the style refuses it
+    with pytest.raises(ValueError, match="OperatorStyle.crowd_fill: must be true or false"):
+        make_expert(dt=0.05, crowd_fill=value)
