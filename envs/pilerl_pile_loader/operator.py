@@ -69,6 +69,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from .machine import MachineParameters
+
 PHASES: tuple[str, ...] = ("approach", "fill", "finish")
 TRIGGER_SENSORS: tuple[str, ...] = ("drive_pressure", "telescope_pressure")
 
@@ -90,7 +92,8 @@ LEVEL_FALL_S = 0.2  # ... and a falling one (quickly, but not every noise dip) [
 # crowd fill (``OperatorStyle.crowd_fill``)
 CROWD_LIFT_STEP_RAD = 0.03  # foot off while the pinned boom comes up this step [rad]
 FACE_CONTACT_MPA = 0.5  # the edge is in the face while p_t reads this above its free reading
-DRIVE_RELIEF_MPA = 25.0  # the drive's relief (docs/machine_model.md): a stalled push reads it
+# the drive's relief, which a stalled push reads: the machine's (docs/machine_model.md)
+DRIVE_RELIEF_MPA = MachineParameters.drive_relief_pressure_mpa
 TRACTION_CAP_FRACTION = 0.8  # a push flat below this x the relief: the wheels spin [MPa/MPa]
 SPIN_RISE_FRACTION = 0.5  # driving: p_d flat this x the impact rise above driving: stopped
 DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)

@@ -154,3 +154,21 @@ def test_a_cohesive_face_well_above_the_critical_height_collapses():
     assert result.height_m == pytest.approx(1.5 * h_c, abs=GRAIN_M)
     assert result.moved_fraction > 0.2
     assert result.face_top_drop_m > GRAIN_M
+
+
+@pytest.mark.parametrize(
+    ("field", "value"), [("diameter_m", 0.0), ("watch_s", -1.0), ("cohesion_pa", -5.0)]
+)
+def test_an_impossible_cut_fails_naming_the_field(field, value):
+    from pilerl_pile_loader.soil.particle_cut import run_cut
+
+    arguments = {
+        "height_m": 0.5,
+        "cohesion_pa": 2000.0,
+        "friction_angle_deg": 33.0,
+        "density_kg_m3": 1550.0,
+        "diameter_m": 0.107,
+        "watch_s": 1.5,
+    }
+    with pytest.raises(ValueError, match=f"run_cut: {field}"):
+        run_cut(**{**arguments, field: value})

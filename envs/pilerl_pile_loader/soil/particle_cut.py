@@ -22,6 +22,7 @@ Used by tests/envs/test_particle_cohesion.py and benchmarks/particle_cohesion.py
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import mujoco
@@ -179,8 +180,11 @@ def run_cut(
     watch_s: float = WATCH_S,
 ) -> CutResult:
     """Settle the block against the gate, remove it, watch the face (module docstring)."""
-    import time
-
+    for name, value in (("height_m", height_m), ("diameter_m", diameter_m), ("watch_s", watch_s)):
+        if not (math.isfinite(value) and value > 0.0):
+            raise ValueError(f"run_cut: {name} must be a finite number > 0, got {value!r}")
+    if not (math.isfinite(cohesion_pa) and cohesion_pa >= 0.0):
+        raise ValueError(f"run_cut: cohesion_pa must be a finite number >= 0, got {cohesion_pa!r}")
     model, sites, face_x = build_cut(
         height_m, cohesion_pa, friction_angle_deg, density_kg_m3, diameter_m
     )

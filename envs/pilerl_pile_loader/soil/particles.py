@@ -257,8 +257,9 @@ VOLUME_CELL_M = 0.02  # column size of the load's bulk volume (fill_measure="vol
 COVER_RADIUS_RATIO = 2.0 / math.sqrt(3.0)  # disks of this x radius cover a packed layer
 # ---- cohesion (module docstring, "Cohesion")
 HCP_SOLID_FRACTION = math.pi / (3.0 * math.sqrt(2.0))  # 1 - porosity of the grains' lattice
-# the bond force that stands a vertical cut of Terzaghi's height, over the Rumpf / Mohr-Coulomb
-# estimate (bond_force_n): measured by tests/envs/test_particle_cohesion.py
+# a factor on the Rumpf / Mohr-Coulomb bond force (bond_force_n): 1, none needed, since faces
+# below Terzaghi's critical height stand and faces well above it fall
+# (tests/envs/test_particle_cohesion.py checks it)
 COHESION_CALIBRATION = 1.0
 # collision bits of a cohesive pile: its grains' soil geoms touch grains, core and walls
 # (bonded); their unbonded copies touch the machine and the ground (assets/wheel_loader.xml:
