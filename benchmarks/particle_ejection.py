@@ -31,7 +31,6 @@ every row, to tell which of a condition's differences the throwing depends on.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import time
 
@@ -130,11 +129,15 @@ def scoop(env: gym.Env, seed: int) -> dict[str, float]:
 
 
 def main() -> None:
+    from pilerl_pile_loader.conditions import overrides_argument
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--conditions", nargs="+", default=["summer", "winter_a", "winter_c"])
     parser.add_argument("--seeds", type=int, default=4, help="seeded scoops per row")
     parser.add_argument("--mouth-grains", type=float, default=6.0)
-    parser.add_argument("--overrides", type=json.loads, default=None, help="condition overrides")
+    parser.add_argument(
+        "--overrides", type=overrides_argument, default=None, help="condition overrides (JSON)"
+    )
     args = parser.parse_args()
     seeds = list(range(args.seeds))
     header = (
