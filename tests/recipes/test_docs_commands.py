@@ -10,7 +10,10 @@ modules run in this process (imports are paid once); budgets are cut through ove
 Documents that begin with the same commands (README, experiments, training and
 fine-tuning all record demonstrations first) run them once per session: a later
 document starts from a copy of the working directory those commands left
-(``SharedPrefixes``). A command that cannot run here says why in ``NOT_RUN``: the
+(``SharedPrefixes``); a command two documents run on the same recorded data runs in one
+of them (``RUN_ELSEWHERE``), and multiruns use Hydra's in-process launcher instead of
+worker processes (``IN_PROCESS_LAUNCHERS``: their own tests start those). A command that
+cannot run here says why in ``NOT_RUN``: the
 README's two front-door commands (CI runs them as written), a Ray cluster's commands,
 and commands over a user's own files. Every other command must
 run and exit 0, so the documents cannot drift from the code.
@@ -74,6 +77,23 @@ CROSS_SOIL = (
     "about 20 minutes on the heightfield, an hour on the particle soil; "
     "tests/reports/test_seeds_and_soils.py builds its report section"
 )
+# process launchers this test swaps for Hydra's in-process one: starting worker processes
+# (and their imports) cost more than the tiny jobs. The launcher configs themselves are run
+# by the test named beside each one.
+IN_PROCESS_LAUNCHERS = {
+    "hydra/launcher=local_parallel": "tests/sweeps/test_sweeps.py::"
+    "test_multirun_with_the_local_parallel_launcher_then_summary",
+    "hydra/launcher=ray_local": "tests/rl/test_ray.py::"
+    "test_multirun_on_the_ray_launcher_runs_each_job_with_its_overrides",
+}
+# (document, command prefix) -> the step of another document that runs the same command on
+# the same inputs, so this document's copy is not run twice
+RUN_ELSEWHERE = {
+    ("README.md", "python recipes/train_bc.py --multirun +experiment=exp3_attention"): (
+        "docs/experiments.md",
+        "python recipes/train_bc.py --multirun +experiment=exp3_attention",
+    ),
+}
 # command prefix -> why it is not run by this test
 NOT_RUN = {
     "bash scripts/setup.sh": "the README's front door: CI (.ci/run) runs both as written",
@@ -156,6 +176,9 @@ def document_commands(document: Path) -> list[Command]:
 
 def not_run_reason(command: Command) -> str | None:
     plain = command.text.removeprefix(".venv/bin/")
+    for (document, prefix), (other, _) in RUN_ELSEWHERE.items():
+        if command.document.name == document and plain.startswith(prefix):
+            return f"{other} runs the same command"
     return next((why for prefix, why in NOT_RUN.items() if plain.startswith(prefix)), None)
 
 
@@ -191,7 +214,11 @@ def run_command(command: Command) -> None:
                 tiny += ["algorithm.updates_per_batch=2", "algorithm.batch_size=32"]
             if "hydra/sweeper=bc_optuna" in command.text:  # Optuna's budget: its trials
                 tiny = [*tiny, f"hydra.sweeper.n_trials={TINY_OPTUNA_TRIALS}"]
-            sys.argv = [str(recipe), *argv[1:], *tiny]
+            words = [
+                "hydra/launcher=basic" if word in IN_PROCESS_LAUNCHERS else word
+                for word in argv[1:]
+            ]
+            sys.argv = [str(recipe), *words, *tiny]
             runpy.run_path(str(recipe), run_name="__main__")
         else:
             raise AssertionError(f"{command}: add it to NOT_RUN with a reason, or run it here")
@@ -211,6 +238,33 @@ def test_every_documented_command_is_run_or_says_why_not():
             argv[0] == "-m" or argv[0].startswith("recipes/") or argv[0] in written
         )
         assert runnable or not_run_reason(command), f"{command}: neither run nor excused"
+
+
+def test_a_command_run_elsewhere_is_run_there_after_the_same_steps():
+    """The excused copy (README) and the command that runs (docs/experiments.md) follow
+    the same recording and dataset commands, so they train on the same data."""
+    inputs = ("recipes/record.py", "recipes/build_dataset.py")
+    for (document, prefix), (other, other_prefix) in RUN_ELSEWHERE.items():
+        steps = {}
+        for name, start in ((document, prefix), (other, other_prefix)):
+            path = ROOT / name
+            commands = document_commands(path)
+            at = [
+                i
+                for i, c in enumerate(commands)
+                if c.text.removeprefix(".venv/bin/").startswith(start)
+            ]
+            assert at, f"{name}: no command starts with {start!r}"
+            steps[name] = [
+                shlex.join(c.argv) for c in commands[: at[0]] if c.argv and c.argv[0] in inputs
+            ]
+        assert steps[document] == steps[other], f"{document} and {other} record different data"
+        assert (
+            not_run_reason(
+                next(c for c in document_commands(ROOT / other) if c.text.startswith(other_prefix))
+            )
+            is None
+        ), f"{other} does not run {other_prefix!r} either"
 
 
 def runnable_steps(document: Path) -> list[Command]:
