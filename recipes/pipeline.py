@@ -64,7 +64,7 @@ def main(config: PipelineConfig, run: Run) -> dict[str, float]:
         env_kwargs = config.env.make_kwargs(condition=condition, control_hz=demos.record_hz)
         recording = RecordingPlan(
             config.env.simulator, env_kwargs, n_episodes=episodes, seed=demos.seed,
-            expert={"trigger_sensor": trigger, "mistake_rate": demos.mistake_rate},
+            expert={**demos.expert, "trigger_sensor": trigger, "mistake_rate": demos.mistake_rate},
         )  # fmt: skip
         description = f"scripted demonstrations, {condition}, {demos.record_hz:g} Hz"
         where = out.sub("demos", condition).root

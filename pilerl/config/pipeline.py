@@ -45,5 +45,6 @@ class PipelineConfig:
                 f"differentiable); choose one of {list(NEURAL_CONTROLLERS)}"
             )
         self.demos.check_rate(self.env)
+        self.demos.check_expert(self.env)
         self.evaluation.condition_names(self.env)
         check_controller(self.policy, self.sensors, trainer=None)

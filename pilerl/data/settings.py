@@ -122,6 +122,10 @@ class DemosConfig:
             (telescope-pressure cue): the validation loss and the Fig. 3 / Fig. 5 data.
         record_hz: recording (= control) rate [Hz]; 20 Hz is D_II's rate.
         mistake_rate: share of operators who raise the boom too early.
+        expert: further options of the scripted expert for both recordings (the pile
+            loader's: ``crowd_fill``, ``executed_noise``; docs/operators.md); its cue
+            sensors are the pipeline's (summer: drive pressure, winter_c: telescope
+            pressure) and its mistake rate is ``mistake_rate``.
         seed: base seed of the recordings.
         workers: recording processes.
     """
@@ -130,6 +134,7 @@ class DemosConfig:
     validation_episodes: int = 4
     record_hz: float = 20.0
     mistake_rate: float = 0.28
+    expert: dict[str, Any] = field(default_factory=dict)
     seed: int = 0
     workers: int = 2
 
@@ -140,6 +145,15 @@ class DemosConfig:
         checks.fraction("demos.mistake_rate", self.mistake_rate)
         checks.non_negative_int("demos.seed", self.seed)
         checks.positive_int("demos.workers", self.workers)
+
+    def check_expert(self, env: EnvConfig) -> None:
+        """``expert`` holds options ``env``'s scripted expert takes, and none the pipeline
+        sets itself."""
+        owned = {"trigger_sensor": "the pipeline's", "mistake_rate": "demos.mistake_rate"}
+        for key in self.expert:
+            if key in owned:
+                raise ValueError(f"demos.expert.{key}: set by {owned[key]}, not here")
+        env.plugin().check_expert_options(self.expert, where="demos.expert", drawn=True)
 
     def check_rate(self, env: EnvConfig) -> None:
         """``record_hz`` is a control rate ``env``'s simulator accepts (the pile loader: at

@@ -222,6 +222,10 @@ COMBINATIONS = [
     ("pipeline", ["evaluation.video_conditions=[nowhere]"], "evaluation.video_conditions"),
     ("pipeline", ["finetune.collection.backend=threads"], "collection.backend"),
     ("pipeline", ["sensors=no_such_set"], "sensors"),
+    ("pipeline", ["+demos.expert.crowdfill=true"], "demos.expert"),
+    ("pipeline", ["+demos.expert.crowd_fill=perhaps"], "demos.expert"),
+    ("pipeline", ["+demos.expert.mistake_rate=0.1"], "demos.expert.mistake_rate"),
+    ("pipeline", ["+demos.expert.trigger_sensor=boom_angle"], "demos.expert.trigger_sensor"),
     ("scoop", ["conditions=[]"], "conditions"),
     ("scoop", ["camera="], "camera"),
     ("scoop", ["+expert.trigger_sensor=boom_angle"], "trigger_sensor"),
@@ -259,3 +263,8 @@ def test_bad_override_fails_when_the_typed_config_is_built(config, overrides, fi
         build_typed_config(config, overrides)
     # the pipeline's finetune section is a FinetuneConfig, whose messages name its fields
     assert field.removeprefix("finetune.") in error_text(caught.value), error_text(caught.value)
+
+
+def test_the_pipeline_takes_options_for_its_scripted_expert():
+    config = build_typed_config("pipeline", ["+demos.expert.crowd_fill=true"])
+    assert config.demos.expert == {"crowd_fill": True}
