@@ -26,9 +26,11 @@ is triggered by something it senses:
 With ``OperatorStyle.crowd_fill`` the operator fills the way a person does through the
 bucket mouth: it keeps crowding the pile while the boom rises through the face (lift and
 push together while the edge is in the face, felt on the telescope pressure), takes its foot
-off while a boom pinned by the push comes up a step, curls a step to break out when it does
-not, and fills with the wrist (lift while curling, gentle push) when the wheels slip; a
-scoop whose bucket never bit into the face is light. Driving, it also takes the machine
+off while a boom pinned by the push (lifting, and it does not rise) comes up a step, curls a
+step to break out when it does not come up once the push has relaxed, and fills with the
+wrist (lift while curling, gentle push) when the wheels slip; a scoop whose bucket never bit
+into the face is light. Every cue of its filling is felt on the four controller sensors
+(boom and bucket angle, drive and telescope pressure). Driving, it also takes the machine
 stopping with its wheels turning (the drive pressure well up and flat: on ice it tops out
 short of the impact rise) for the impact. Off by default.
 
@@ -122,8 +124,10 @@ class OperatorStyle:
             bucket is curled whenever its floor lags behind this.
         curl_band_rad: how far the bucket floor may lag behind the wanted pitch.
         curl_step_rad: how far one curl turns the bucket floor.
-        boom_stall_mpa: boom pressure felt as the boom stalling (the relief valve opens).
-        bucket_stall_mpa: bucket pressure felt as the bucket stalling: stop curling.
+        boom_stall_mpa: boom pressure felt as the boom stalling (the relief valve opens);
+            not used by a crowding operator (it feels the boom angle instead).
+        bucket_stall_mpa: bucket pressure felt as the bucket stalling: stop curling; not
+            used by a crowding operator (it feels the bucket angle instead).
         slip_drop_fraction: while pushing, a drive pressure below this fraction of the
             highest one felt in this push is felt as the wheels slipping: ease off.
         ease_throttle: throttle after easing off.
@@ -411,6 +415,8 @@ class PileLoadingOperator:
         self._rolling = False  # driving: rolling steadily at a pressure it is used to
         self._face_peak = 0.0
         self._free_from = 0.0
+        self._bucket_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))  # curling
+        self._breaking_out = False  # crowd fill: this curl breaks a held-down boom out
         self._bitten = False
         self._light = False  # finishing: the scoop came up light, go again after backing off
         self._curled_back = False
@@ -565,10 +571,14 @@ class PileLoadingOperator:
         - lift and push together while the edge is in the face (the telescope pressure
           above its free reading); when the edge comes out, hold the boom and crowd it back
           in, unless the machine rolls on freely (nothing left to bite: lift on);
-        - the boom pinned by the push (its relief valve open): foot off, keep lifting until
-          it has come up a step; if it does not come up (held down by the material on the
-          bucket), curl a step to break out;
+        - the boom pinned by the push (lifting, it has not risen 0.01 rad in 0.3 s): foot
+          off, keep lifting until it has come up a step; if it does not come up once the
+          push has relaxed (the drive pressure below half its peak: the material on the
+          bucket holds it down), curl a step to break out, the foot off while the boom sags
+          (pressed down through its relief valve), pushing once it holds its angle;
         - curl a step, the push kept on, when the bucket floor lags behind the boom's rise;
+        - a curl step ends when the floor has turned the step or the bucket stops turning
+          (0.01 rad in 0.3 s); then lift a step with the foot off before crowding again;
         - the wheels slip (the push collapses while the pile still holds the bucket, or the
           push tops out flat short of the drive's relief): ease the throttle and fill with
           the wrist, lifting gently while curling.
@@ -580,34 +590,33 @@ class PileLoadingOperator:
         pitch = boom + bucket - self._rest_pitch
         wanted = st.curl_per_lift * risen  # the bucket-floor pitch this boom rise calls for
         self._boom_trace.append(boom)
+        self._bucket_trace.append(bucket)
         in_face = telescope >= self._free_telescope + FACE_CONTACT_MPA
         self._bitten = self._bitten or in_face
-        pinned = reading["boom_pressure"] >= st.boom_stall_mpa
         self._feel_slip(drive, telescope, in_face)
 
         if self._action == "lift":
             if pitch < wanted - st.curl_band_rad:
-                self._action, self._curl_from = "curl", pitch
-            elif pinned:
-                self._action, self._free_from = "free", boom
-                self._boom_trace.clear()
+                self._start_curl(pitch, breaking_out=False)
+            elif self._boom_stalled():  # lifting and the boom does not rise: the push pins it
+                self._start_freeing(boom)
         elif self._action == "free":  # foot off, lifting: until the boom has come up a step
             if boom >= self._free_from + CROWD_LIFT_STEP_RAD:
                 self._crowd_again(drive, telescope)
-            elif self._boom_stalled():  # held down by the material on the bucket: break out
-                self._action, self._curl_from = "curl", pitch
+            elif self._boom_stalled() and drive < RELAXED_FRACTION * self._push_peak:
+                # the push has relaxed and the boom still does not come up: the material on
+                # the bucket holds it down, break out
+                self._start_curl(pitch, breaking_out=True)
         else:  # curling a step
             turned = pitch >= max(self._curl_from + st.curl_step_rad, wanted + st.curl_band_rad)
-            if turned or reading["bucket_pressure"] >= st.bucket_stall_mpa:
-                if pinned:  # broken out: lift a step before crowding in again
-                    self._action, self._free_from = "free", boom
-                    self._boom_trace.clear()
-                else:
-                    self._crowd_again(drive, telescope)
+            if turned or self._bucket_stalled():  # lift a step, foot off, before crowding
+                self._start_freeing(boom)
 
         throttle = st.ease_throttle if self._eased else st.push_throttle
         if self._action == "curl":
-            return (0.0, st.curl, 0.0 if pinned else throttle)
+            # breaking out, the foot stays off while the boom sags (held down at its relief)
+            held = self._breaking_out and self._boom_sagging()
+            return (0.0, st.curl, 0.0 if held else throttle)
         if self._action == "free":
             return (st.lift, 0.0, 0.0)
         if in_face:
@@ -616,6 +625,7 @@ class PileLoadingOperator:
             # machine rolls on freely (the drive pressure steady): nothing left to bite
             self._roll_trace.append(drive)
             if not self._steady(self._roll_trace, BACK_STEADY_S):
+                self._boom_trace.clear()  # the boom held: not lifting
                 return (0.0, 0.0, throttle)
             return (st.lift, 0.0, throttle)
         if self._eased:  # traction is the limit: fill with the wrist (lift while curling)
@@ -644,6 +654,18 @@ class PileLoadingOperator:
         else:
             self._push_trace.clear()
 
+    def _start_curl(self, pitch: float, *, breaking_out: bool) -> None:
+        """Crowd fill: curl a step from bucket-floor pitch ``pitch`` [rad]: to break a boom
+        held down by the material out (``breaking_out``), or because the floor lags."""
+        self._action, self._curl_from, self._breaking_out = "curl", pitch, breaking_out
+        self._boom_trace.clear()
+        self._bucket_trace.clear()
+
+    def _start_freeing(self, boom: float) -> None:
+        """Crowd fill: foot off, lift the boom a step from ``boom`` [rad]."""
+        self._action, self._free_from = "free", boom
+        self._boom_trace.clear()
+
     def _crowd_again(self, drive: float, telescope: float) -> None:
         """Crowd fill: back to lifting while pushing; the new push is felt anew."""
         self._action = "lift"
@@ -655,6 +677,21 @@ class PileLoadingOperator:
         window = self._steps(window_s)
         recent = list(trace)[-window:]
         return len(recent) >= window and max(recent) - min(recent) <= BACK_STEADY_MPA
+
+    def _boom_sagging(self) -> bool:
+        """Crowd fill, curling with the boom valve shut: the boom is felt to sag (pressed
+        down through its relief valve) while it has fallen ``STALL_RISE_RAD`` or more in
+        the last ``STALL_WINDOW_S``, and until that long has been felt."""
+        window = self._steps(STALL_WINDOW_S)
+        trace = self._boom_trace
+        return len(trace) < window or trace[-window] - trace[-1] >= STALL_RISE_RAD
+
+    def _bucket_stalled(self) -> bool:
+        """Crowd fill: the bucket is felt to stall: curling for ``STALL_WINDOW_S`` and it
+        has not turned by ``STALL_RISE_RAD``."""
+        window = self._steps(STALL_WINDOW_S)
+        trace = self._bucket_trace
+        return len(trace) >= window and trace[-1] - trace[-window] < STALL_RISE_RAD
 
     def _boom_stalled(self) -> bool:
         """The boom is felt to stall: lifting for ``STALL_WINDOW_S`` and it has not risen

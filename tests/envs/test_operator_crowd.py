@@ -72,16 +72,83 @@ def test_out_of_the_face_it_holds_the_boom_and_crowds_back_in_unless_it_rolls_fr
     assert operator.act(risen(IN_FACE, 0.1))[0] > 0  # in the face again: lifts and pushes
 
 
-def test_a_boom_pinned_by_the_push_comes_up_a_step_with_the_foot_off():
+def pinned_by_the_push(operator, reading: dict, decisions: int = 8) -> np.ndarray:
+    """Feed ``reading`` (the boom not rising) for ``decisions`` decisions; the last command."""
+    for _ in range(decisions):
+        command = operator.act(reading)
+    return command
+
+
+def test_a_boom_that_does_not_rise_while_crowding_is_freed_with_the_foot_off():
+    """Felt on the boom angle alone (0.01 rad in 0.3 s), not on the boom pressure."""
     operator, _ = crowding()
-    pinned = risen({**IN_FACE, "drive_pressure": 25.0, "boom_pressure": 20.0}, 0.05)
-    command = operator.act(pinned)
-    assert command[0] > 0 and command[1] == 0 and command[2] == 0  # foot off, lifting
-    command = operator.act(risen({**pinned, "boom_pressure": 14.0}, 0.09))  # came up
+    # the boom pressure at its relief does not matter while the boom rises
+    for rad in (0.05, 0.07, 0.09, 0.11, 0.13, 0.15, 0.17, 0.19):
+        command = operator.act(risen({**IN_FACE, "drive_pressure": 25.0, "boom_pressure": 20}, rad))
+    assert command[0] > 0 and command[2] > 0  # still crowding
+    # the boom stops rising at a low boom pressure: pinned by the push, felt
+    stuck = risen({**IN_FACE, "drive_pressure": 25.0, "boom_pressure": 12.0}, 0.2)
+    commands = [operator.act(stuck) for _ in range(8)]
+    assert commands[0][2] > 0  # not at once: a person feels it within 0.3 s
+    assert commands[-1].tolist() == [pytest.approx(operator.style.lift), 0.0, 0.0]  # foot off
+    command = operator.act(risen(stuck, 0.24))  # the boom came up a step
     assert command[0] > 0 and command[2] > 0  # crowding again
-    operator.act(pinned)
-    commands = [operator.act(pinned) for _ in range(10)]  # the boom does not come up
-    assert commands[-1][0] == 0 and commands[-1][1] > 0 and commands[-1][2] == 0  # breaks out
+
+
+def test_it_breaks_out_only_once_the_push_has_relaxed():
+    """Foot off and lifting, the boom held down: the operator waits for the machine to stop
+    pushing (the drive pressure below half its peak) before it curls a step."""
+    operator, _ = crowding()
+    stuck = risen({**IN_FACE, "drive_pressure": 25.0}, 0.05)
+    pinned_by_the_push(operator, stuck)  # felt pinned: foot off
+    command = pinned_by_the_push(operator, stuck, 10)  # the push has not relaxed
+    assert command[0] > 0 and command[1] == 0 and command[2] == 0  # lifts on, foot off
+    relaxed = {**stuck, "drive_pressure": 11.0, "telescope_pressure": 1.5}  # p_t falls with it
+    command = pinned_by_the_push(operator, relaxed, 1)
+    assert command[0] == 0 and command[1] > 0  # the boom does not come up: breaks out
+
+
+def test_breaking_out_it_pushes_only_while_the_boom_holds_its_angle():
+    """During a break-out curl the boom valve is shut: a boom pressed down through its
+    relief sags, and the foot stays off; once it holds its angle for 0.3 s, it pushes."""
+    operator, _ = crowding()
+    stuck = risen({**IN_FACE, "drive_pressure": 25.0}, 0.05)
+    pinned_by_the_push(operator, stuck)
+    pinned_by_the_push(operator, stuck, 10)
+    relaxed = {**stuck, "drive_pressure": 11.0, "telescope_pressure": 1.5}  # p_t falls with it
+    boom, bucket = relaxed["boom_angle"], relaxed["bucket_angle"]
+    sag = [  # the bucket turns, the boom sags
+        operator.act({**relaxed, "boom_angle": boom - 0.005 * k, "bucket_angle": bucket + 0.02 * k})
+        for k in range(1, 6)
+    ]
+    assert all(c[1] > 0 and c[2] == 0 for c in sag)  # curling, foot off: the boom sags
+    commands = [  # the bucket turns on, the boom holds its angle
+        operator.act(
+            {**relaxed, "boom_angle": boom - 0.025, "bucket_angle": bucket + 0.1 + 0.01 * k}
+        )
+        for k in range(1, 9)
+    ]
+    assert commands[-1][1] > 0  # still curling (the floor has not turned a step)
+    assert commands[-1][2] == pytest.approx(operator.style.push_throttle)  # pushes
+
+
+def test_a_curl_step_ends_when_the_bucket_stops_turning_then_the_boom_comes_up_a_step():
+    """The bucket stall is felt on the bucket angle (0.01 rad in 0.3 s), not on the
+    bucket pressure; after the curl, the boom is lifted a step with the foot off."""
+    operator, _ = crowding()
+    stuck = risen({**IN_FACE, "drive_pressure": 25.0}, 0.05)
+    pinned_by_the_push(operator, stuck)
+    pinned_by_the_push(operator, stuck, 10)
+    curling = {**stuck, "drive_pressure": 11.0, "telescope_pressure": 1.5, "bucket_pressure": 30.0}
+    assert operator.act(curling)[1] > 0  # a bucket pressure over its relief does not stop it
+    turning = [
+        operator.act({**curling, "bucket_angle": curling["bucket_angle"] + 0.02 * k})
+        for k in range(1, 5)
+    ]
+    assert all(c[1] > 0 for c in turning)
+    stalled = {**curling, "bucket_angle": curling["bucket_angle"] + 0.08}
+    commands = [operator.act(stalled) for _ in range(8)]
+    assert commands[-1].tolist() == [pytest.approx(operator.style.lift), 0.0, 0.0]
 
 
 def test_when_the_wheels_slip_it_eases_off_and_fills_with_the_wrist():
@@ -93,8 +160,8 @@ def test_when_the_wheels_slip_it_eases_off_and_fills_with_the_wrist():
     assert command[2] == pytest.approx(operator.style.ease_throttle)
     # on ice the push tops out flat, short of the drive's relief: the same
     capped, _ = crowding()
-    for _ in range(8):
-        command = capped.act(risen({**IN_FACE, "drive_pressure": 13.0}, 0.05))
+    for k in range(8):  # the boom rising slowly while the wheels spin
+        command = capped.act(risen({**IN_FACE, "drive_pressure": 13.0}, 0.05 + 0.01 * k))
     assert command[1] > 0 and command[2] == pytest.approx(capped.style.ease_throttle)
 
 
