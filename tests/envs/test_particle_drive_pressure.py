@@ -6,7 +6,7 @@ x flow the motors do not take), so p_d follows the tyres' traction from one phys
 the next. With 20 CG iterations the tyres' contacts, solved together with the grains' in
 one capped solve, were left unresolved once the bucket was in the pile: the tyres left
 the ground on 30-47 % of the physics steps, the slipping wheels' speed jumped, and on
-winter_c's ice p_d read 10.1, 8.2, 25.0, 2.2, 25.0 ... MPa, its 90th percentile at the
+winter_c's ice p_d read 10.1, 8.2, 25.0, 2.2, 25.0 ... MPa, its 90th percentile near the
 drive's relief as in summer: the slip cap, the paper's central winter phenomenon, was
 buried. One seeded winter_c drive-in of the issue #15 measurement (throttle 0.6, boom and
 bucket held) on the default (bonded) particle pile, started 1 m from the pile, no sensor
@@ -59,16 +59,16 @@ def test_the_bucket_pushes_into_the_pile(drive_pressure_in_contact_mpa):
 
 
 def test_drive_pressure_does_not_chatter_on_ice(drive_pressure_in_contact_mpa):
-    # median change between consecutive 20 Hz samples in contact: 0.1 MPa here, ~0 on the
-    # heightfield; 6.3 MPa with the tyres hopping (20 CG iterations); the sensor's own
-    # noise (0.15 MPa, off here) would give ~0.14
+    # median change between consecutive 20 Hz samples in contact: ~0.1 MPa at 30 CG
+    # iterations, ~0 on the heightfield; 5.87 MPa with the tyres hopping (20 iterations);
+    # the sensor's own noise (0.15 MPa, off here) would give ~0.14
     ripple_mpa = np.median(np.abs(np.diff(drive_pressure_in_contact_mpa)))
     assert ripple_mpa < 0.5
 
 
 def test_drive_pressure_on_ice_is_capped_by_the_slip(drive_pressure_in_contact_mpa):
-    # the four tyres slip together at about 12 MPa (the heightfield: 12.3 MPa on this
-    # drive-in); summer's push reaches the 25 MPa relief; with the tyres hopping the 90th
-    # percentile read 22.9 MPa, the relief's spikes
+    # the four tyres slip together at about 12 MPa (the heightfield's slip cap on seed 0's
+    # drive-in: 12.3 MPa); summer's push reaches the 25 MPa relief; with the tyres
+    # hopping (20 iterations) the 90th percentile read 21.6 MPa, the relief's spikes
     relief_mpa = MachineParameters().drive_relief_pressure_mpa
     assert np.percentile(drive_pressure_in_contact_mpa, 90) < 0.6 * relief_mpa
