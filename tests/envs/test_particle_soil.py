@@ -285,10 +285,10 @@ VOLUME = {**COARSE, "fill_measure": "volume"}
 
 
 def test_scripted_scoop_fills_as_recorded(scoop_infos):
-    """The coarse pile's seeded drive-in-and-curl scoop reads 0.58 (measured when the
-    test was written; 0.34 with the softer 0.01 s contacts): a broken contact model, grain
-    size or tally moves it far."""
-    assert scoop_infos[-1]["fill_fraction"] == pytest.approx(0.58, abs=0.08)
+    """The coarse pile's seeded drive-in-and-curl scoop reads 0.47 (measured with 30 CG
+    iterations in session 30; 0.58 with 20, when the test was written, and 0.34 with the
+    softer 0.01 s contacts): a broken contact model, grain size or tally moves it far."""
+    assert scoop_infos[-1]["fill_fraction"] == pytest.approx(0.47, abs=0.08)
 
 
 @pytest.fixture(scope="module")
@@ -306,7 +306,7 @@ def test_volume_measure_changes_the_fill_not_the_physics(volume_env, scoop_infos
     assert final == pytest.approx(soil.load_bulk_volume_m3() / rated_m3, rel=1e-12)
     # a scooped load lies looser than the pile it came from: its bulk volume is larger
     assert final > scoop_infos[-1]["fill_fraction"]
-    assert final == pytest.approx(0.68, abs=0.08)  # measured when the test was written
+    assert final == pytest.approx(0.57, abs=0.08)  # 30 CG iterations (20: 0.68)
 
 
 def test_bulk_volume_of_one_grain_is_its_column(volume_env):
