@@ -28,6 +28,7 @@ from pilerl.config import register_configs
 from pilerl.config.pipeline import PipelineConfig
 from pilerl.data import EpisodeStore, RecordingPlan, build_dataset
 from pilerl.data.recording import record
+from pilerl.data.settings import PIPELINE_TRIGGERS
 from pilerl.evaluation.evaluator import ActorController, success_metrics
 from pilerl.evaluation.stage import closed_loop_plan, evaluate_controller
 from pilerl.layout import RunLayout
@@ -70,8 +71,8 @@ def main(config: PipelineConfig, run: Run) -> dict[str, float]:
         where = out.sub("demos", condition).root
         return record(where, recording, workers=demos.workers, description=description)
 
-    summer = demonstrations("summer", "drive_pressure", demos.episodes)
-    winter = demonstrations("winter_c", "telescope_pressure", demos.validation_episodes)
+    summer = demonstrations("summer", PIPELINE_TRIGGERS["summer"], demos.episodes)
+    winter = demonstrations("winter_c", PIPELINE_TRIGGERS["winter_c"], demos.validation_episodes)
 
     # --- 2. D_II: the successful summer demonstrations at the recorded rate
     dataset = build_dataset(summer, rl_config.demos, successful_only=True, rate_hz=None)

@@ -10,8 +10,10 @@
 #   bash scripts/paper_experiments.sh report   # docs/results/paper from whatever has finished
 #
 # A and B may run at the same time (one core each), after prep; C after A's Exp. 3 (the
-# particle pile runs about 0.6x real time on an idle core, so C evaluates the same
-# controllers on summer and winter_c only, 4 episodes per seed: about 1.5 hours on one
+# particle pile ran about 0.6x real time on an idle core with its 20 CG iterations (30 since
+# session 30: digging about twice as slow), so C evaluates the same
+# controllers on summer and winter_c only, 4 episodes per seed: about 1.5 hours (20
+# iterations; about 3 with 30) on one
 # core; a third process on a 2-core machine, so better after A or B). Run from the repository root;
 # PYTHON defaults to .venv/bin/python, NICE to 10. Each step's output goes to
 # logs/paper_experiments/<step>.out and its start and end to logs/paper_experiments/steps.log.

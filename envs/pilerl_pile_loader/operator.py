@@ -96,6 +96,7 @@ CROWD_LIFT_STEP_RAD = 0.03  # foot off while the pinned boom comes up this step 
 FACE_CONTACT_MPA = 0.5  # the edge is in the face while p_t reads this above its free reading
 # the drive's relief, which a stalled push reads: the machine's (docs/machine_model.md)
 DRIVE_RELIEF_MPA = MachineParameters.drive_relief_pressure_mpa
+DRIVE_CHARGE_MPA = MachineParameters.drive_charge_pressure_mpa  # the loop's low side
 TRACTION_CAP_FRACTION = 0.8  # a push flat below this x the relief: the wheels spin [MPa/MPa]
 SPIN_RISE_FRACTION = 0.5  # driving: p_d flat this x the impact rise above driving: stopped
 DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)
@@ -603,7 +604,7 @@ class PileLoadingOperator:
         elif self._action == "free":  # foot off, lifting: until the boom has come up a step
             if boom >= self._free_from + CROWD_LIFT_STEP_RAD:
                 self._crowd_again(drive, telescope)
-            elif self._boom_stalled() and drive < RELAXED_FRACTION * self._push_peak:
+            elif self._boom_stalled() and self._push_relaxed(drive):
                 # the push has relaxed and the boom still does not come up: the material on
                 # the bucket holds it down, break out
                 self._start_curl(pitch, breaking_out=True)
@@ -665,6 +666,15 @@ class PileLoadingOperator:
         """Crowd fill: foot off, lift the boom a step from ``boom`` [rad]."""
         self._action, self._free_from = "free", boom
         self._boom_trace.clear()
+
+    def _push_relaxed(self, drive: float) -> bool:
+        """Crowd fill, foot off: the push is felt to have relaxed: the drive pressure
+        ``drive`` [MPa] below half its peak in this push, or down to within
+        ``BACK_STEADY_MPA`` of the charge pressure (a push that never rose far)."""
+        return (
+            drive < RELAXED_FRACTION * self._push_peak
+            or drive <= DRIVE_CHARGE_MPA + BACK_STEADY_MPA
+        )
 
     def _crowd_again(self, drive: float, telescope: float) -> None:
         """Crowd fill: back to lifting while pushing; the new push is felt anew."""

@@ -112,6 +112,10 @@ class TeleopConfig:
         checks.name("operator_id", self.operator_id)
 
 
+# the pipeline's recordings: condition -> the sensor its operators feel the impact on
+PIPELINE_TRIGGERS = {"summer": "drive_pressure", "winter_c": "telescope_pressure"}
+
+
 @dataclass
 class DemosConfig:
     """Scripted demonstrations recorded by the pipeline (its ``demos`` node).
@@ -149,11 +153,16 @@ class DemosConfig:
     def check_expert(self, env: EnvConfig) -> None:
         """``expert`` holds options ``env``'s scripted expert takes, and none the pipeline
         sets itself."""
-        owned = {"trigger_sensor": "the pipeline's", "mistake_rate": "demos.mistake_rate"}
+        owned = {
+            "trigger_sensor": "the pipeline (summer: drive_pressure, winter_c: telescope_pressure)",
+            "mistake_rate": "demos.mistake_rate",
+        }
         for key in self.expert:
             if key in owned:
                 raise ValueError(f"demos.expert.{key}: set by {owned[key]}, not here")
-        env.plugin().check_expert_options(self.expert, where="demos.expert", drawn=True)
+        for trigger in PIPELINE_TRIGGERS.values():  # as the pipeline's recordings build it
+            options = {**self.expert, "trigger_sensor": trigger, "mistake_rate": self.mistake_rate}
+            env.plugin().check_expert_options(options, where="demos.expert", drawn=True)
 
     def check_rate(self, env: EnvConfig) -> None:
         """``record_hz`` is a control rate ``env``'s simulator accepts (the pile loader: at

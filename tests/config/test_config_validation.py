@@ -266,5 +266,7 @@ def test_bad_override_fails_when_the_typed_config_is_built(config, overrides, fi
 
 
 def test_the_pipeline_takes_options_for_its_scripted_expert():
-    config = build_typed_config("pipeline", ["+demos.expert.crowd_fill=true"])
+    overrides = ["+env.soil_options.intake=mouth", "+demos.expert.crowd_fill=true"]
+    config = build_typed_config("pipeline", overrides)  # docs/finetuning.md's mouth world
     assert config.demos.expert == {"crowd_fill": True}
+    assert config.env.soil_options == {"intake": "mouth"}

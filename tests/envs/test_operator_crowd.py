@@ -108,28 +108,62 @@ def test_it_breaks_out_only_once_the_push_has_relaxed():
     assert command[0] == 0 and command[1] > 0  # the boom does not come up: breaks out
 
 
+def break_out(operator) -> dict:
+    """Pin the crowding ``operator``'s boom, relax the push, and let it start a break-out
+    curl; the relaxed reading."""
+    stuck = risen({**IN_FACE, "drive_pressure": 25.0}, 0.05)
+    pinned_by_the_push(operator, stuck)
+    pinned_by_the_push(operator, stuck, 10)
+    return {**stuck, "drive_pressure": 11.0, "telescope_pressure": 1.5}  # p_t falls with it
+
+
 def test_breaking_out_it_pushes_only_while_the_boom_holds_its_angle():
     """During a break-out curl the boom valve is shut: a boom pressed down through its
     relief sags, and the foot stays off; once it holds its angle for 0.3 s, it pushes."""
     operator, _ = crowding()
-    stuck = risen({**IN_FACE, "drive_pressure": 25.0}, 0.05)
-    pinned_by_the_push(operator, stuck)
-    pinned_by_the_push(operator, stuck, 10)
-    relaxed = {**stuck, "drive_pressure": 11.0, "telescope_pressure": 1.5}  # p_t falls with it
+    relaxed = break_out(operator)
     boom, bucket = relaxed["boom_angle"], relaxed["bucket_angle"]
-    sag = [  # the bucket turns, the boom sags
-        operator.act({**relaxed, "boom_angle": boom - 0.005 * k, "bucket_angle": bucket + 0.02 * k})
-        for k in range(1, 6)
+    sag = [  # the bucket turns, the boom sags (0.015 rad in each 0.3 s window), 0.6 s long
+        operator.act(
+            {**relaxed, "boom_angle": boom - 0.0025 * k, "bucket_angle": bucket + 0.012 * k}
+        )
+        for k in range(1, 13)
     ]
     assert all(c[1] > 0 and c[2] == 0 for c in sag)  # curling, foot off: the boom sags
+    held = {"boom_angle": boom - 0.03, "bucket_angle": bucket + 0.144}
     commands = [  # the bucket turns on, the boom holds its angle
-        operator.act(
-            {**relaxed, "boom_angle": boom - 0.025, "bucket_angle": bucket + 0.1 + 0.01 * k}
-        )
+        operator.act({**relaxed, **held, "bucket_angle": held["bucket_angle"] + 0.005 * k})
         for k in range(1, 9)
     ]
+    assert commands[0][2] == 0  # not at once: the hold is felt over 0.3 s
     assert commands[-1][1] > 0  # still curling (the floor has not turned a step)
     assert commands[-1][2] == pytest.approx(operator.style.push_throttle)  # pushes
+
+
+def test_a_boom_that_holds_from_the_start_of_the_break_out_is_pushed_once_felt():
+    operator, _ = crowding()
+    relaxed = break_out(operator)
+    commands = [
+        operator.act({**relaxed, "bucket_angle": relaxed["bucket_angle"] + 0.01 * k})
+        for k in range(1, 9)
+    ]
+    assert all(c[1] > 0 for c in commands)  # curling throughout
+    assert commands[-1][2] == pytest.approx(operator.style.push_throttle)
+
+
+def test_a_push_that_never_rose_far_is_relaxed_at_the_charge_pressure():
+    """A new crowd whose boom stalls before the drive pressure has risen: its peak is low,
+    so half of it lies below the charge pressure the loop never reads under; the push is
+    felt relaxed at the charge pressure, and the held-down boom is broken out."""
+    operator, _ = crowding()
+    stuck = risen({**IN_FACE, "drive_pressure": 25.0}, 0.05)
+    pinned_by_the_push(operator, stuck)  # foot off: freeing the boom
+    # the boom came up a step, the foot off the push relaxed: crowding again from 3 MPa
+    operator.act(risen({**stuck, "drive_pressure": 3.0}, 0.09))
+    low = risen({**IN_FACE, "drive_pressure": 3.5}, 0.09)  # the new push barely rose
+    pinned_by_the_push(operator, low)  # pinned again: foot off
+    command = pinned_by_the_push(operator, {**low, "drive_pressure": 2.5}, 8)
+    assert command[0] == 0 and command[1] > 0  # breaks out, not stuck lifting until 30 s
 
 
 def test_a_curl_step_ends_when_the_bucket_stops_turning_then_the_boom_comes_up_a_step():

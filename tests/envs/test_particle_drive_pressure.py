@@ -5,7 +5,7 @@ The hydrostatic drive is a stiff velocity servo on the wheels (loop pressure = l
 x flow the motors do not take), so p_d follows the tyres' traction from one physics step to
 the next. With 20 CG iterations the tyres' contacts, solved together with the grains' in
 one capped solve, were left unresolved once the bucket was in the pile: the tyres left
-the ground on 30-47 % of the physics steps, the slipping wheels' speed jumped, and on
+the ground on 29-47 % of the physics steps, the slipping wheels' speed jumped, and on
 winter_c's ice p_d read 10.1, 8.2, 25.0, 2.2, 25.0 ... MPa, its 90th percentile near the
 drive's relief as in summer: the slip cap, the paper's central winter phenomenon, was
 buried. One seeded winter_c drive-in of the issue #15 measurement (throttle 0.6, boom and

@@ -176,8 +176,9 @@ def document_commands(document: Path) -> list[Command]:
 
 def not_run_reason(command: Command) -> str | None:
     plain = command.text.removeprefix(".venv/bin/")
+    where = command.document.relative_to(ROOT).as_posix()
     for (document, prefix), (other, _) in RUN_ELSEWHERE.items():
-        if command.document.name == document and plain.startswith(prefix):
+        if where == document and plain.startswith(prefix):
             return f"{other} runs the same command"
     return next((why for prefix, why in NOT_RUN.items() if plain.startswith(prefix)), None)
 
@@ -245,26 +246,31 @@ def test_a_command_run_elsewhere_is_run_there_after_the_same_steps():
     the same recording and dataset commands, so they train on the same data."""
     inputs = ("recipes/record.py", "recipes/build_dataset.py")
     for (document, prefix), (other, other_prefix) in RUN_ELSEWHERE.items():
-        steps = {}
+        steps, found = {}, {}
         for name, start in ((document, prefix), (other, other_prefix)):
-            path = ROOT / name
-            commands = document_commands(path)
+            commands = document_commands(ROOT / name)
             at = [
                 i
                 for i, c in enumerate(commands)
                 if c.text.removeprefix(".venv/bin/").startswith(start)
             ]
             assert at, f"{name}: no command starts with {start!r}"
+            found[name] = commands[at[0]]
             steps[name] = [
                 shlex.join(c.argv) for c in commands[: at[0]] if c.argv and c.argv[0] in inputs
             ]
         assert steps[document] == steps[other], f"{document} and {other} record different data"
-        assert (
-            not_run_reason(
-                next(c for c in document_commands(ROOT / other) if c.text.startswith(other_prefix))
-            )
-            is None
-        ), f"{other} does not run {other_prefix!r} either"
+        assert shlex.join(found[document].argv) == shlex.join(found[other].argv)
+        assert not_run_reason(found[document]) is not None
+        assert not_run_reason(found[other]) is None, f"{other} does not run it either"
+
+
+def test_the_launchers_swapped_here_are_run_by_the_tests_named():
+    for launcher, test in IN_PROCESS_LAUNCHERS.items():
+        path, name = test.split("::")
+        text = (ROOT / path).read_text()
+        assert f"def {name}(" in text, f"{test} (named for {launcher}) does not exist"
+        assert f'"{launcher}"' in text, f"{test} does not run {launcher}"
 
 
 def runnable_steps(document: Path) -> list[Command]:

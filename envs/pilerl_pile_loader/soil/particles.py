@@ -129,18 +129,21 @@ iterations (default ``SOLVER_ITERATIONS``), the largest cost of a step. Driving 
 in free air, the machine then matches the default Newton solver to a few per cent (drive
 pressure 0.14 MPa off on average, of about 4 MPa; 14 iterations: 0.22 MPa, 10: 0.76 MPa).
 In the pile the cap leaves contact forces unconverged, and the fill depends on it too
-(docs/soil_models.md): at 6 grains across the mouth 20 and 40 iterations gave the same
-mean fill and 14 a quarter less; at 8, 20 and 40 give the same
-(``conf/soil/particles_fine.yaml`` sets 40). The tyres' contacts are in the same solve:
+(docs/soil_models.md): with the earlier soft 0.01 s contacts, at 6 grains across the
+mouth 20 and 40 iterations gave the same mean fill and 14 a quarter less, and at 8, 20 and
+40 the same (``conf/soil/particles_fine.yaml`` sets 40); with today's 0.004 s contacts
+the nominal expert's summer seed 0 filled 0.471 at 20, 0.237 at 30 and 0.212 at 40
+(session 30). The tyres' contacts are in the same solve:
 until session 30 the default was 20 iterations, and with the bucket in the pile CG stopped
 at the cap on every step, leaving the tyre-ground contacts unresolved (the tyres left the
-ground on 30-47 % of the physics steps of a winter_c drive-in, the front ones on ~1/3 in
+ground on 29-47 % of the physics steps of a winter_c drive-in, the front ones on ~1/3 in
 summer); the drive, a stiff velocity servo on the wheels, read the hopping tyres'
 traction, and on ice p_d chattered between 2 MPa and the relief (docs/soil_models.md,
-"The drive pressure's chatter on ice"). At 30 the tyres stay on the ground and p_d reads
-the slip cap, as on the heightfield; the pile also stays packed (~3 times the contacts of
-the 20-iteration pile once awake), so digging costs about twice as long per simulated
-second. Fewer iterations run faster but are not a cheaper version of the same pile.
+"The drive pressure's chatter on ice"). At 30 p_d reads the slip cap, as on the heightfield
+(the tyres were logged on the ground at 40 and 100 iterations; at 30 only p_d was); the
+pile also stays packed (~3 times the contacts of the 20-iteration pile once awake), so
+digging costs about twice as long per simulated second. Fewer iterations run faster but
+are not a cheaper version of the same pile.
 MuJoCo's body sleeping freezes a resting pile, so driving up to it costs almost nothing.
 
 **Tallies** (every ``update``; particle counts times the particle mass):
