@@ -692,25 +692,29 @@ class PileLoadingOperator:
         """Crowd fill, curling with the boom valve shut: the boom is felt to sag (pressed
         down through its relief valve) while it has fallen ``STALL_RISE_RAD`` or more in
         the last ``STALL_WINDOW_S``, and until that long has been felt."""
-        window = self._steps(STALL_WINDOW_S)
-        trace = self._boom_trace
-        return len(trace) < window or trace[-window] - trace[-1] >= STALL_RISE_RAD
-
-    def _bucket_stalled(self) -> bool:
-        """Crowd fill: the bucket is felt to stall: curling for ``STALL_WINDOW_S`` and it
-        has not turned by ``STALL_RISE_RAD``."""
-        window = self._steps(STALL_WINDOW_S)
-        trace = self._bucket_trace
-        return len(trace) >= window and trace[-1] - trace[-window] < STALL_RISE_RAD
+        moved = self._stall_window_change(self._boom_trace)
+        return moved is None or -moved >= STALL_RISE_RAD
 
     def _boom_stalled(self) -> bool:
         """The boom is felt to stall: lifting for ``STALL_WINDOW_S`` and it has not risen
         by ``STALL_RISE_RAD``."""
+        return self._stalled(self._boom_trace)
+
+    def _bucket_stalled(self) -> bool:
+        """Crowd fill: the bucket is felt to stall: curling for ``STALL_WINDOW_S`` and it
+        has not turned by ``STALL_RISE_RAD``."""
+        return self._stalled(self._bucket_trace)
+
+    def _stalled(self, angles: deque[float]) -> bool:
+        """``angles`` [rad] span ``STALL_WINDOW_S`` and grew less than ``STALL_RISE_RAD``."""
+        moved = self._stall_window_change(angles)
+        return moved is not None and moved < STALL_RISE_RAD
+
+    def _stall_window_change(self, angles: deque[float]) -> float | None:
+        """How far ``angles`` [rad] moved over the last ``STALL_WINDOW_S``; ``None`` until
+        they span it."""
         window = self._steps(STALL_WINDOW_S)
-        trace = self._boom_trace
-        if len(trace) < window:
-            return False
-        return trace[-1] - trace[-window] < STALL_RISE_RAD
+        return angles[-1] - angles[-window] if len(angles) >= window else None
 
     def _finish(self, reading: dict[str, float]) -> tuple[float, float, float]:
         """Curl back until the bucket reaches the end angle, back off until the machine
@@ -741,10 +745,7 @@ class PileLoadingOperator:
         self._set_off = self._set_off or reading["pump_angle"] < 0.0
         if self._set_off:
             self._drive_trace.append(reading["drive_pressure"])
-            window = self._steps(BACK_STEADY_S)
-            recent = list(self._drive_trace)[-window:]
-            steady = len(recent) >= window and max(recent) - min(recent) <= BACK_STEADY_MPA
-            self._backed_off = steady
+            self._backed_off = self._steady(self._drive_trace, BACK_STEADY_S)
         return not self._backed_off
 
     def _steps(self, window_s: float) -> int:
