@@ -28,7 +28,6 @@ from pilerl.config import register_configs
 from pilerl.config.pipeline import PipelineConfig
 from pilerl.data import EpisodeStore, RecordingPlan, build_dataset
 from pilerl.data.recording import record
-from pilerl.data.settings import PIPELINE_TRIGGERS
 from pilerl.evaluation.evaluator import ActorController, success_metrics
 from pilerl.evaluation.stage import closed_loop_plan, evaluate_controller
 from pilerl.layout import RunLayout
@@ -61,18 +60,18 @@ def main(config: PipelineConfig, run: Run) -> dict[str, float]:
     )
 
     # --- 1. demonstrations: summer (training) and winter_c (validation, figures)
-    def demonstrations(condition: str, trigger: str, episodes: int) -> EpisodeStore:
+    def demonstrations(condition: str, episodes: int) -> EpisodeStore:
         env_kwargs = config.env.make_kwargs(condition=condition, control_hz=demos.record_hz)
         recording = RecordingPlan(
             config.env.simulator, env_kwargs, n_episodes=episodes, seed=demos.seed,
-            expert={**demos.expert, "trigger_sensor": trigger, "mistake_rate": demos.mistake_rate},
+            expert=demos.expert_options(condition),  # summer: drive-pressure cue; winter_c: p_t
         )  # fmt: skip
         description = f"scripted demonstrations, {condition}, {demos.record_hz:g} Hz"
         where = out.sub("demos", condition).root
         return record(where, recording, workers=demos.workers, description=description)
 
-    summer = demonstrations("summer", PIPELINE_TRIGGERS["summer"], demos.episodes)
-    winter = demonstrations("winter_c", PIPELINE_TRIGGERS["winter_c"], demos.validation_episodes)
+    summer = demonstrations("summer", demos.episodes)
+    winter = demonstrations("winter_c", demos.validation_episodes)
 
     # --- 2. D_II: the successful summer demonstrations at the recorded rate
     dataset = build_dataset(summer, rl_config.demos, successful_only=True, rate_hz=None)

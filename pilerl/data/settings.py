@@ -150,18 +150,25 @@ class DemosConfig:
         checks.non_negative_int("demos.seed", self.seed)
         checks.positive_int("demos.workers", self.workers)
 
+    def expert_options(self, condition: str) -> dict[str, Any]:
+        """The scripted expert's options for the pipeline's recording in ``condition``:
+        ``expert``, with that recording's cue sensor and ``mistake_rate``."""
+        trigger = PIPELINE_TRIGGERS[condition]
+        return {**self.expert, "trigger_sensor": trigger, "mistake_rate": self.mistake_rate}
+
     def check_expert(self, env: EnvConfig) -> None:
         """``expert`` holds options ``env``'s scripted expert takes, and none the pipeline
         sets itself."""
+        triggers = ", ".join(f"{c}: {t}" for c, t in PIPELINE_TRIGGERS.items())
         owned = {
-            "trigger_sensor": "the pipeline (summer: drive_pressure, winter_c: telescope_pressure)",
+            "trigger_sensor": f"the pipeline ({triggers})",
             "mistake_rate": "demos.mistake_rate",
         }
         for key in self.expert:
             if key in owned:
                 raise ValueError(f"demos.expert.{key}: set by {owned[key]}, not here")
-        for trigger in PIPELINE_TRIGGERS.values():  # as the pipeline's recordings build it
-            options = {**self.expert, "trigger_sensor": trigger, "mistake_rate": self.mistake_rate}
+        for condition in PIPELINE_TRIGGERS:
+            options = self.expert_options(condition)
             env.plugin().check_expert_options(options, where="demos.expert", drawn=True)
 
     def check_rate(self, env: EnvConfig) -> None:

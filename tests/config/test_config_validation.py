@@ -270,3 +270,9 @@ def test_the_pipeline_takes_options_for_its_scripted_expert():
     config = build_typed_config("pipeline", overrides)  # docs/finetuning.md's mouth world
     assert config.demos.expert == {"crowd_fill": True}
     assert config.env.soil_options == {"intake": "mouth"}
+    assert config.demos.expert_options("winter_c") == {
+        "crowd_fill": True,
+        "trigger_sensor": "telescope_pressure",
+        "mistake_rate": config.demos.mistake_rate,
+    }
+    assert config.demos.expert_options("summer")["trigger_sensor"] == "drive_pressure"
