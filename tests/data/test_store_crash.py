@@ -3,7 +3,7 @@ data are consistent (no duplicates, no lost committed episodes, no leftover temp
 files); concurrent writers; pickle-free, schema-checked loading.
 
 The kill tests run real subprocesses, a bounded number of kills each. Every kill is one
-case of a small harness (``KillTally``); ``python -m pytest tests/data/test_store_crash.py -s``
+case of a small harness (``KillTally``); ``python -m pytest tests/data/test_store_crash.py -s -n 0``
 prints the table test | cases | clean | defects.
 """
 
