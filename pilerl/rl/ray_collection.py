@@ -14,6 +14,10 @@ this module only fixes what pilerl needs on every machine:
   rendering), set before the worker imports torch.
 - A cluster too small for the actors fails at once with the numbers, instead of
   waiting forever for resources.
+- The actors get ``WEIGHT_SYNC_TIMEOUT_S`` to join the weight-sync process group, not
+  TorchRL 0.14's 60 s: joining starts a Ray worker process that imports torch, which took
+  longer than 60 s on a loaded 2-core machine (a CI run failed so), as it may on a busy
+  cluster node.
 
 Ray is optional (``pip install -e '.[ray]'``; the ``dev`` extra includes it): it is
 imported only when a collector is made. See docs/ray.md.
@@ -40,6 +44,9 @@ WORKER_ENV_VARS = {
     "OPENBLAS_NUM_THREADS": "1",
     "MUJOCO_GL": "egl",  # offscreen rendering, no display on cluster nodes
 }
+# how long the learner waits for the actors to join torch.distributed's weight-sync group
+# (TorchRL 0.14 fixes 60 s in torchrl.weight_update._ray._DIST_TIMEOUT) [s]
+WEIGHT_SYNC_TIMEOUT_S = 600.0
 
 
 def worker_runtime_env(env_vars: dict[str, str] | None = None) -> dict[str, Any]:
@@ -161,6 +168,7 @@ def make_ray_collector(
 
     from torchrl.collectors.distributed import RayCollector
 
+    allow_slow_weight_sync(WEIGHT_SYNC_TIMEOUT_S)
     collector = RayCollector(
         create_env_fn,
         policy,
@@ -176,3 +184,18 @@ def make_ray_collector(
     if policy is not None:
         collector.update_policy_weights_(policy)  # actors start from these weights
     return collector
+
+
+def allow_slow_weight_sync(timeout_s: float) -> None:
+    """Give Ray actors ``timeout_s`` to join TorchRL's weight-sync process group.
+
+    TorchRL 0.14 reads the rendezvous timeout from a module constant at each connection
+    (``torchrl.weight_update._ray._DIST_TIMEOUT``, 60 s) and offers no argument for it, so
+    it is set here; a TorchRL without that constant is left as it is (its own timeout).
+    """
+    from datetime import timedelta
+
+    from torchrl.weight_update import _ray as torchrl_ray_weights
+
+    if hasattr(torchrl_ray_weights, "_DIST_TIMEOUT"):
+        torchrl_ray_weights._DIST_TIMEOUT = timedelta(seconds=timeout_s)

@@ -1,13 +1,15 @@
 """A pytest plugin that measures each test's CPU time, for comparing the suite's cost
 between commits on a loaded machine (wall time there is noise).
 
-    PILERL_CPU_TIMES=cpu.tsv python -m pytest -q -p cpu_times
+    PILERL_CPU_TIMES=cpu.tsv python -m pytest -q -p cpu_times -n 0
 
 appends one line per test to ``cpu.tsv``: node id, CPU seconds (user + system, fixture
 setup and teardown included) and wall seconds. The CPU time counts this process, its
 children that were waited for (``RUSAGE_CHILDREN``: subprocesses, joined worker pools)
 and the growth of its live descendants (``/proc``: worker pools that outlive a test).
-Without the variable the plugin records nothing.
+Without the variable the plugin records nothing. It works in pytest-xdist's workers too,
+but compare files written the same way: workers build the session fixtures once each and
+share the cores, so ``-n 0`` (one process) is the comparable setting.
 """
 
 from __future__ import annotations
