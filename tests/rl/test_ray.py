@@ -75,6 +75,12 @@ def test_ray_collector_collects_the_requested_frames_with_the_actor(ray_address)
         seed=0,
         collector_kwargs={"auto_register_policy_transforms": False},
     )
+    # the learner gave the actors WEIGHT_SYNC_TIMEOUT_S to join (its first weights went out)
+    from torchrl.weight_update import _ray as torchrl_ray_weights
+
+    assert torchrl_ray_weights._DIST_TIMEOUT.total_seconds() == (
+        ray_collection.WEIGHT_SYNC_TIMEOUT_S
+    )
     batches = [batch for batch in collector]  # the iterator shuts the actors down at the end
     assert [batch.batch_size for batch in batches] == [torch.Size([20])] * 3
     data = torch.cat(batches)
@@ -100,12 +106,15 @@ def test_the_learner_waits_for_slow_actors_to_join_the_weight_sync():
     from torchrl.weight_update import _ray as torchrl_ray_weights
 
     assert hasattr(torchrl_ray_weights, "_DIST_TIMEOUT"), "TorchRL renamed its timeout"
+    # an earlier collector test of this process may have lengthened it already
     before, wanted_s = torchrl_ray_weights._DIST_TIMEOUT, ray_collection.WEIGHT_SYNC_TIMEOUT_S
+    torchrl_default = timedelta(seconds=60)
     try:
+        torchrl_ray_weights._DIST_TIMEOUT = torchrl_default
         ray_collection.allow_slow_weight_sync(wanted_s)
         now = torchrl_ray_weights._DIST_TIMEOUT
         assert now == timedelta(seconds=wanted_s)
-        assert now > before
+        assert now > torchrl_default
     finally:
         torchrl_ray_weights._DIST_TIMEOUT = before
 
