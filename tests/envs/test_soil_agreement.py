@@ -63,7 +63,9 @@ def summer_fills() -> dict[str, float]:
     raises=AssertionError,
     reason="session 30: measured on the 20-iteration particle pile, whose tyre contacts were "
     "unresolved; with 30 CG iterations the four seeds fill 0.29 against the mouth intake's "
-    "0.48 (docs/soil_models.md, 'The drive pressure's chatter on ice'); not traced yet",
+    "0.48 (docs/soil_models.md, 'The drive pressure's chatter on ice'); traced in session "
+    "31 to the expert's impact cue, which fires on the grains' impact burst: the same "
+    "commands fill both soils alike ('Same actions on both soils')",
 )
 def test_on_loose_gravel_the_mouth_intake_fills_like_the_particle_pile(summer_fills):
     assert abs(summer_fills["particles"] / summer_fills["mouth"] - 1.0) <= AGREEMENT
