@@ -131,12 +131,7 @@ def episode(
 
 
 def script_policy(lift_s: float, curl_s: float):
-    def policy(step: int, obs: dict) -> np.ndarray:
-        if step * open_loop.SCRIPT_STEP_S < lift_s:
-            return np.array(open_loop.DRIVE_IN, np.float32)
-        return open_loop.scripted_action(step, curl_from_s=curl_s)
-
-    return policy
+    return lambda step, obs: open_loop.scripted_action(step, lift_from_s=lift_s, curl_from_s=curl_s)
 
 
 class ExpertPolicy:

@@ -9,10 +9,10 @@ plugin's: its control order (``sensors.CONTROL_NAMES``: boom, bucket, throttle) 
 command range.
 
 The script has three parts: drive in (throttle 0.8), lift while still pushing (boom 0.5,
-bucket 0.3, throttle 0.5) from 3 s, curl and lift (boom 0.8, bucket 1.0, throttle 0.1)
-from ``curl_from_s``. Its clock counts steps of 0.05 s (20 Hz) whatever the simulator's
-control rate: a 10 Hz simulator given the same steps runs the same commands at half the
-pace.
+bucket 0.3, throttle 0.5) from ``lift_from_s`` (3 s), curl and lift (boom 0.8, bucket 1.0,
+throttle 0.1) from ``curl_from_s``. Its clock counts steps of 0.05 s (20 Hz) whatever the
+simulator's control rate: a 10 Hz simulator given the same steps runs the same commands at
+half the pace.
 """
 
 from __future__ import annotations
@@ -27,17 +27,20 @@ LIFT = (0.5, 0.3, 0.5)
 CURL = (0.8, 1.0, 0.1)
 
 
-def scripted_action(step: int, *, phase: int = 0, curl_from_s: float = CURL_FROM_S) -> np.ndarray:
+def scripted_action(
+    step: int, *, phase: int = 0, lift_from_s: float = LIFT_FROM_S, curl_from_s: float = CURL_FROM_S
+) -> np.ndarray:
     """The [boom, bucket, throttle] command (float32) of step ``step`` of the script.
 
     Args:
         step: control steps since the reset.
         phase: steps the script is ahead (a batch's simulators in different parts of a
             scoop: simulator i at ``phase=4 * i``).
+        lift_from_s: when the lift starts, in the script's seconds.
         curl_from_s: when the curl starts, in the script's seconds.
     """
     t = (step + phase) * SCRIPT_STEP_S
-    if t < LIFT_FROM_S:
+    if t < lift_from_s:
         return np.array(DRIVE_IN, np.float32)
     if t < curl_from_s:
         return np.array(LIFT, np.float32)
