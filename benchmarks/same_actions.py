@@ -27,10 +27,18 @@ Tables (``--tables``):
   the same starts: the first run of p_d at relief (ms, edge depth), p_d's lowest in the
   0.3 s after it, where p_d first stays at relief 0.15 s (``sust``), the edge depth where
   the machine stops (speed < 0.05 m/s) and the deepest.
+- ``expert`` (not in the default set): the nominal expert, styled by ``--style
+  FIELD=VALUE`` (``OperatorStyle`` fields, e.g. ``impact_cue=stall``), on each of
+  ``--soils`` under ``--condition``: fill by mass and volume, scoops finished, the cue's
+  time after contact and edge depth there (``d cue``), pushes in the fill phase (runs of a
+  forward throttle), and the particle episodes' real-time factor (simulated s per wall s;
+  logging p_d at 500 Hz included).
 
     python benchmarks/same_actions.py                       # every table, seeds 0-3
     python benchmarks/same_actions.py --tables replay --seeds 2
     python benchmarks/same_actions.py --tables scripts --lift 3 5 --curl 6 8
+    python benchmarks/same_actions.py --tables expert --style impact_cue=stall \
+        --condition winter_c --soils particles mouth
 """
 
 from __future__ import annotations
@@ -97,7 +105,7 @@ def episode(
     obs, _ = env.reset(seed=seed)
     LOG.machine, LOG.p_d, LOG.speed = sim.machine, [], []
     rows: dict[str, list] = {k: [] for k in ("action", "p_d", "depth", "speed", "phase")}
-    step, info, start = 0, {}, time.process_time()
+    step, info, start, wall = 0, {}, time.process_time(), time.perf_counter()
     env_module.mujoco = LOG
     try:
         while True:
@@ -126,6 +134,7 @@ def episode(
         per_step=sim.frame_skip,
         phys_dt=sim.model.opt.timestep,
         cpu_s=time.process_time() - start,
+        wall_s=time.perf_counter() - wall,
     )
     return trace
 
@@ -135,10 +144,11 @@ def script_policy(lift_s: float, curl_s: float):
 
 
 class ExpertPolicy:
-    """The nominal scripted expert; ``phase``: its phase index after the last decision."""
+    """The nominal scripted expert (``style``: ``OperatorStyle`` fields to set);
+    ``phase``: its phase index after the last decision."""
 
-    def __init__(self, dt: float) -> None:
-        self.expert = make_expert(dt=dt)
+    def __init__(self, dt: float, **style: object) -> None:
+        self.expert = make_expert(dt=dt, **style)
         self.expert.reset()
         self.phase = 0
 
@@ -184,8 +194,8 @@ def fills(values) -> str:
     return ", ".join(f"{v:.3f}" for v in values)
 
 
-def make_env(soil: str) -> gym.Env:
-    return gym.make(ENV_ID, condition="summer", sensor_noise=0.0, **SOILS[soil])
+def make_env(soil: str, condition: str = "summer") -> gym.Env:
+    return gym.make(ENV_ID, condition=condition, sensor_noise=0.0, **SOILS[soil])
 
 
 def scripts_table(seeds: list[int], pairs: list[tuple[float, float]]) -> None:
@@ -325,6 +335,63 @@ def cue_table(seeds: list[int]) -> None:
         env.close()
 
 
+def expert_table(seeds: list[int], soils: list[str], condition: str, style: dict) -> None:
+    described = " ".join(f"{k}={v}" for k, v in style.items()) or "nominal"
+    print(f"\nthe expert ({described}), {condition}, seeds {seeds[0]}-{seeds[-1]}")
+    header = (
+        f"{'soil':>9} {'seed':>4} {'fill':>5} {'vol':>5} {'done':>4} {'cue-contact s':>13} "
+        f"{'d cue':>5} {'p_d cue':>7} {'pushes':>6} {'sim s':>5} {'wall s':>6} {'rtf':>5}"
+    )
+    print(header)
+    print("-" * len(header))
+    for soil in soils:
+        env = make_env(soil, condition)
+        rows = []
+        for seed in seeds:
+            tr = episode(env, seed, ExpertPolicy(env.unwrapped.dt, **style))
+            fill_phase = tr["phase"] == 1
+            fired = bool(fill_phase.any())
+            cue, c = int(np.argmax(fill_phase)), contact_step(tr)
+            pushing = fill_phase & (tr["action"][:, 2] > 0)
+            row = (
+                tr["fill"],
+                tr["vol"],
+                float(tr["done"]),
+                tr["t"][cue] - tr["t"][c] if fired else np.nan,
+                tr["depth"][cue] if fired else np.nan,
+                tr["p_d"][cue] if fired else np.nan,
+                len(runs(pushing)),
+                tr["t"][-1] + env.unwrapped.dt,
+                tr["wall_s"],
+            )
+            rows.append(row)
+            print(
+                f"{soil:>9} {seed:>4} {row[0]:5.3f} {row[1]:5.3f} {int(row[2]):>4} "
+                f"{row[3]:13.2f} {row[4]:5.3f} {row[5]:7.1f} {row[6]:>6} {row[7]:5.1f} "
+                f"{row[8]:6.1f} {row[7] / row[8]:5.2f}",
+                flush=True,
+            )
+        m = mean_rows(rows)
+        print(
+            f"{soil:>9} {'mean':>4} {m[0]:5.3f} {m[1]:5.3f} {m[2] * len(rows):4.0f} "
+            f"{m[3]:13.2f} {m[4]:5.3f} {m[5]:7.1f} {m[6]:6.2f} {m[7]:5.1f} {m[8]:6.1f} "
+            f"{m[7] / m[8]:5.2f}",
+            flush=True,
+        )
+        env.close()
+
+
+def style_option(text: str) -> tuple[str, object]:
+    """``FIELD=VALUE`` -> (field, value): true/false as booleans, numbers as floats."""
+    name, _, value = text.partition("=")
+    if value.lower() in ("true", "false"):
+        return name, value.lower() == "true"
+    try:
+        return name, float(value)
+    except ValueError:
+        return name, value
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seeds", type=int, default=4, help="seeded starts 0..N-1")
@@ -332,7 +399,14 @@ def main() -> None:
         "--tables",
         nargs="+",
         default=["scripts", "replay", "cue"],
-        choices=["scripts", "replay", "cue"],
+        choices=["scripts", "replay", "cue", "expert"],
+    )
+    parser.add_argument("--condition", default="summer", help="expert table: the condition")
+    parser.add_argument(
+        "--soils", nargs="+", default=list(SOILS), choices=list(SOILS), help="expert table"
+    )
+    parser.add_argument(
+        "--style", nargs="*", type=style_option, default=[], help="expert table: FIELD=VALUE"
     )
     parser.add_argument("--lift", type=float, nargs="+", default=[open_loop.LIFT_FROM_S, 4.0])
     parser.add_argument("--curl", type=float, nargs="+", default=[open_loop.CURL_FROM_S, 7.0])
@@ -346,6 +420,8 @@ def main() -> None:
         replay_table(seeds)
     if "cue" in args.tables:
         cue_table(seeds)
+    if "expert" in args.tables:
+        expert_table(seeds, args.soils, args.condition, dict(args.style))
 
 
 if __name__ == "__main__":

@@ -34,6 +34,13 @@ into the face is light. Every cue of its filling is felt on the four controller 
 stopping with its wheels turning (the drive pressure well up and flat: on ice it tops out
 short of the impact rise) for the impact. Off by default.
 
+With ``OperatorStyle.impact_cue="stall"`` the rise is not enough: the operator drives in
+until the machine stops pushing forward (the drive pressure held at its relief, or flat
+well above what rolling took: the wheels turning on ice), so a granular face's brief
+impact spike is not taken for the impact; with ``OperatorStyle.push_again`` it crowds
+again once the boom is free after a curl that found the boom and the bucket both held.
+Both off by default (docs/operators.md, "Stall cue and pushing again").
+
 Styles (``OperatorStyle``) make operators differ (pace, valve openings, how far they push
 and lift, how much they curl per lift), and ``sample_style`` draws one per episode. The
 paper's mistakes are behaviours, triggered by what the operator senses like everything
@@ -75,6 +82,8 @@ from .machine import MachineParameters
 
 PHASES: tuple[str, ...] = ("approach", "fill", "finish")
 TRIGGER_SENSORS: tuple[str, ...] = ("drive_pressure", "telescope_pressure")
+# what makes a rise of the trigger sensor the impact (``OperatorStyle.impact_cue``)
+IMPACT_CUES: tuple[str, ...] = ("rise", "stall")
 
 # How far above the felt driving level the trigger sensor must rise to be felt as impact,
 # drawn per operator [MPa]: the drive pressure climbs to its relief (~25 MPa) within a
@@ -99,6 +108,8 @@ DRIVE_RELIEF_MPA = MachineParameters.drive_relief_pressure_mpa
 DRIVE_CHARGE_MPA = MachineParameters.drive_charge_pressure_mpa  # the loop's low side
 TRACTION_CAP_FRACTION = 0.8  # a push flat below this x the relief: the wheels spin [MPa/MPa]
 SPIN_RISE_FRACTION = 0.5  # driving: p_d flat this x the impact rise above driving: stopped
+# the push held at the drive's relief: p_d within ``BACK_STEADY_MPA`` of it [MPa]
+AT_RELIEF_MPA = DRIVE_RELIEF_MPA - BACK_STEADY_MPA
 DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)
 STALL_WINDOW_S = 0.3  # the boom is felt to stall when, lifting this long, ...
 STALL_RISE_RAD = 0.01  # ... it has risen less than this [rad]
@@ -151,6 +162,19 @@ class OperatorStyle:
             docs/operators.md "Crowd fill"): keep pushing while the boom rises, so the
             bucket mouth keeps passing through material; off by default (the operator the
             demonstrations were recorded with).
+        impact_cue: what makes the trigger's rise the impact (``IMPACT_CUES``): ``rise``
+            (the default): the rise held ``impact_hold_s``; ``stall``: drive in until the
+            machine stops pushing forward, then lift: the rise, and the push built up:
+            the drive pressure at the drive's relief (within ``BACK_STEADY_MPA``) for
+            ``impact_hold_s``, or the machine stopped with its wheels turning (the drive
+            pressure well up and flat, as a crowding operator feels it: on ice it tops
+            out at what the tyres hold). A jumpy operator takes its small rise at once
+            with either cue.
+        push_again: after a curl that ended with the boom and the bucket both held (the
+            operator stopped crowding), crowd the pile again once the boom is free (lifting
+            with its pressure below ``boom_stall_mpa``) while it is still below
+            ``push_lift_rad``; off by default (the operator then never pushes again in
+            that scoop). Not used by a crowding operator.
     """
 
     trigger_sensor: str = "drive_pressure"
@@ -180,6 +204,8 @@ class OperatorStyle:
     push_while_curling: bool = False
     back_off_throttle: float = 0.3
     crowd_fill: bool = False
+    impact_cue: str = "rise"
+    push_again: bool = False
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -191,6 +217,10 @@ class OperatorStyle:
             raise ValueError(
                 f"OperatorStyle.trigger_sensor: must be one of {TRIGGER_SENSORS}, "
                 f"got {self.trigger_sensor!r}"
+            )
+        if self.impact_cue not in IMPACT_CUES:
+            raise ValueError(
+                f"OperatorStyle.impact_cue: must be one of {IMPACT_CUES}, got {self.impact_cue!r}"
             )
         for name in (
             "approach_throttle",
@@ -231,13 +261,17 @@ def sample_style(
     trigger_sensor: str = "drive_pressure",
     mistake_rate: float = 0.28,
     crowd_fill: bool = False,
+    impact_cue: str = "rise",
+    push_again: bool = False,
 ) -> OperatorStyle:
     """Draw one operator: varied in pace, valve openings, how they fill and how briskly
     they back off; with probability ``mistake_rate`` one who makes one of the paper's
     mistakes (jumpy: lifts early on a false impact cue; timid: curls early and lifts out,
     under-filling). Every operator goes again after a scoop that came up light.
-    ``crowd_fill``: every operator fills by crowding (``OperatorStyle.crowd_fill``); the
-    draws are the same either way."""
+    ``crowd_fill``: every operator fills by crowding (``OperatorStyle.crowd_fill``);
+    ``impact_cue``, ``push_again``: every operator feels the impact by that cue and
+    pushes again once the boom is free (``OperatorStyle``); the draws are the same
+    whatever these are."""
     low, high = IMPACT_RISE_RANGES_MPA[trigger_sensor]
     mistake = rng.random() < mistake_rate
     kind = rng.choice(("jumpy", "timid")) if mistake else "none"
@@ -259,10 +293,19 @@ def sample_style(
         jumpy=kind == "jumpy",
         back_off_throttle=float(rng.uniform(0.2, 0.4)),
         crowd_fill=crowd_fill,
+        impact_cue=impact_cue,
+        push_again=push_again,
     )
 
 
-OPTIONS = ("trigger_sensor", "mistake_rate", "executed_noise", "crowd_fill")
+OPTIONS = (
+    "trigger_sensor",
+    "mistake_rate",
+    "executed_noise",
+    "crowd_fill",
+    "impact_cue",
+    "push_again",
+)
 
 
 def make_expert(
@@ -278,7 +321,9 @@ def make_expert(
             ``mistake_rate`` (share of operators drawn with a mistake, in [0, 1]),
             ``executed_noise`` (std of the DART perturbation of the executed boom and
             bucket commands, in [0, 1]; 0 = off), ``crowd_fill`` (fill by crowding through
-            the face, ``OperatorStyle.crowd_fill``; default off); for the nominal operator
+            the face, ``OperatorStyle.crowd_fill``; default off), ``impact_cue`` (``rise``
+            or ``stall``, ``OperatorStyle.impact_cue``; default ``rise``), ``push_again``
+            (``OperatorStyle.push_again``; default off); for the nominal operator
             also any ``OperatorStyle`` field (e.g. ``jumpy``, ``push_throttle``) to set its
             style.
     """
@@ -307,9 +352,13 @@ def make_expert(
         chosen.setdefault("impact_rise_mpa", (low + high) / 2)
         style, noise_seed = OperatorStyle(trigger_sensor=trigger_sensor, **chosen), 0
     else:
-        crowd_fill = _flag("crowd_fill", options.get("crowd_fill", False))
         style = sample_style(
-            rng, trigger_sensor=trigger_sensor, mistake_rate=mistake_rate, crowd_fill=crowd_fill
+            rng,
+            trigger_sensor=trigger_sensor,
+            mistake_rate=mistake_rate,
+            crowd_fill=_flag("crowd_fill", options.get("crowd_fill", False)),
+            impact_cue=str(options.get("impact_cue", "rise")),
+            push_again=_flag("push_again", options.get("push_again", False)),
         )
         noise_seed = int(rng.integers(2**63 - 1))
     return PileLoadingOperator(style, dt=dt, executed_noise=executed_noise, noise_seed=noise_seed)
@@ -396,10 +445,12 @@ class PileLoadingOperator:
         """Forget what was felt in the last scoop: drive at the pile (again)."""
         self._felt_level: float | None = None  # trigger reading felt while driving [MPa]
         self._above_s = 0.0  # how long the trigger has been above the impact level [s]
+        self._relief_s = 0.0  # stall cue: how long the drive has been at its relief [s]
         self._impact_reading = 0.0
         self._waiting = False  # hesitant operator waiting after the impact
         self._action = "lift"  # in filling: lift or curl
         self._pushing = False  # in filling: still crowding the pile with the throttle
+        self._held_off = False  # in filling: stopped crowding with boom and bucket both held
         self._curl_from = 0.0  # bucket-floor pitch when the curl began [rad]
         # what the operator remembers, as long as its windows (in decisions)
         self._boom_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))  # lifting
@@ -414,6 +465,7 @@ class PileLoadingOperator:
         self._approach_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))
         self._roll_trace: deque[float] = deque(maxlen=self._steps(BACK_STEADY_S))
         self._rolling = False  # driving: rolling steadily at a pressure it is used to
+        self._rolling_level = 0.0  # stall cue: p_d when last rolling steadily [MPa]
         self._face_peak = 0.0
         self._free_from = 0.0
         self._bucket_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))  # curling
@@ -450,7 +502,7 @@ class PileLoadingOperator:
 
     def _update_phase(self, reading: dict[str, float]) -> None:
         st = self.style
-        if self.phase == "approach" and self._felt_impact(reading[st.trigger_sensor]):
+        if self.phase == "approach" and self._felt_impact(reading):
             self.phase = "fill"
             self._waiting = st.hesitant
             self._action, self._pushing = "lift", not st.hesitant
@@ -465,15 +517,26 @@ class PileLoadingOperator:
                 light = not self._bitten if st.crowd_fill else not curled
                 self._light = st.go_again and light
 
-    def _felt_impact(self, value: float) -> bool:
+    def _felt_impact(self, reading: dict[str, float]) -> bool:
         """Impact: the trigger reading stays well above the level felt while driving.
 
         The felt level follows the reading down quickly (``LEVEL_FALL_S``) and up slowly
         (``LEVEL_RISE_S``), so the operator gets used to the pressure of driving at its own
         pace but not to the impact. A jumpy operator reacts at once to a small rise, such
         as the surge when the machine sets off.
+
+        With ``impact_cue`` ``stall`` ("drive in until the machine stops pushing forward,
+        then lift") the rise is not enough: the push must have built up as well, the drive
+        pressure at its relief (within ``BACK_STEADY_MPA``) for ``impact_hold_s``, or the
+        machine stopped with its wheels turning (``_felt_stop``; with a telescope trigger:
+        the drive pressure flat over ``STALL_WINDOW_S`` while the bucket is pushed back). A
+        bucket's impact on the face that drives the pressure to the relief for a few tens
+        of milliseconds (a granular face) is not the machine stopping. A crowding operator
+        feels the stop with either cue.
         """
         st = self.style
+        value, drive = reading[st.trigger_sensor], reading["drive_pressure"]
+        self._approach_trace.append(drive)
         if self._felt_level is None:
             self._felt_level = value
         else:
@@ -482,22 +545,48 @@ class PileLoadingOperator:
         rise = st.impact_rise_mpa * (JUMPY_RISE_FRACTION if st.jumpy else 1.0)
         above = value - self._felt_level >= rise
         self._above_s = self._above_s + self.dt if above else 0.0
-        if above and self._above_s >= st.impact_hold_s - 1e-9:
+        self._relief_s = self._relief_s + self.dt if drive >= AT_RELIEF_MPA else 0.0
+        stall_cue = st.impact_cue == "stall" and not st.jumpy
+        if stall_cue:
+            flat = st.trigger_sensor != "drive_pressure" and self._steady(
+                self._approach_trace, STALL_WINDOW_S
+            )
+            felt = above and (self._relief_s >= st.impact_hold_s - 1e-9 or flat)
+        else:
+            felt = above and self._above_s >= st.impact_hold_s - 1e-9
+        if felt or (
+            (stall_cue or st.crowd_fill) and self._felt_stop(drive, from_rolling=stall_cue)
+        ):
             self._impact_reading = value
             return True
-        if st.crowd_fill and st.trigger_sensor == "drive_pressure":
-            # a crowding operator also feels the machine stop at the pile with its wheels
-            # turning: once rolling steadily at a pressure it is used to, the drive pressure
-            # comes well up and stays flat (on ice it tops out at what the tyres hold, below
-            # the rise it waits for)
-            self._approach_trace.append(value)
-            up = value - self._felt_level >= SPIN_RISE_FRACTION * st.impact_rise_mpa
-            if not self._rolling:
-                self._rolling = not up and self._steady(self._approach_trace, BACK_STEADY_S)
-            elif up and self._steady(self._approach_trace, STALL_WINDOW_S):
-                self._impact_reading = value
-                return True
         return False
+
+    def _felt_stop(self, drive: float, *, from_rolling: bool = False) -> bool:
+        """Driving, the machine is felt to stop at the pile with its wheels turning: once
+        rolling steadily at a pressure the operator is used to, the drive pressure
+        ``drive`` [MPa] comes well up (``SPIN_RISE_FRACTION`` of the impact rise above the
+        felt level) and stays flat (within ``BACK_STEADY_MPA`` over ``STALL_WINDOW_S``); on
+        ice it tops out at what the tyres hold, below the rise the operator waits for.
+        Felt on the drive pressure only (with a ``drive_pressure`` trigger: the felt level
+        is the drive's).
+
+        ``from_rolling`` (the stall cue): well up above the drive pressure when last
+        steady (within ``BACK_STEADY_MPA`` over ``BACK_STEADY_S``: rolling, which the
+        stop's flat ``STALL_WINDOW_S`` is too short to be) instead of the felt level now,
+        which creeps up through a long, shaky push into a granular pile on ice (p_d 7-16
+        MPa for a second before the machine stops at ~11.5 MPa, 1.7 s after contact)."""
+        st = self.style
+        if st.trigger_sensor != "drive_pressure":
+            return False
+        steady = self._steady(self._approach_trace, BACK_STEADY_S)
+        if steady:
+            self._rolling_level = drive
+        rise = SPIN_RISE_FRACTION * st.impact_rise_mpa
+        if not self._rolling:
+            self._rolling = steady and drive - self._felt_level < rise
+            return False
+        level = self._rolling_level if from_rolling else self._felt_level
+        return drive - level >= rise and self._steady(self._approach_trace, STALL_WINDOW_S)
 
     def _approach(self, reading: dict[str, float]) -> tuple[float, float, float]:
         """Drive on; keep the boom at rest and the bucket floor level."""
@@ -543,6 +632,10 @@ class PileLoadingOperator:
             stalled = self._boom_stalled() or reading["boom_pressure"] >= st.boom_stall_mpa
             if stalled or pitch < wanted - st.curl_band_rad:
                 self._action, self._curl_from = "curl", pitch
+            elif self._held_off and risen < st.push_lift_rad:
+                # the boom is free again and still low: crowd again, the push felt anew
+                self._pushing, self._held_off = True, False
+                self._push_peak = drive
         else:  # curling: on until the floor has turned and the boom is free again
             turned = pitch >= max(self._curl_from + st.curl_step_rad, wanted + st.curl_band_rad)
             boom_held = reading["boom_pressure"] >= st.boom_stall_mpa
@@ -554,6 +647,7 @@ class PileLoadingOperator:
                 self._boom_trace.clear()
                 if boom_held:
                     self._pushing = False  # boom and bucket both held: stop crowding
+                    self._held_off = st.push_again  # ... until the boom is free again
 
         throttle = 0.0
         if self._pushing:

@@ -127,9 +127,10 @@ class DemosConfig:
         record_hz: recording (= control) rate [Hz]; 20 Hz is D_II's rate.
         mistake_rate: share of operators who raise the boom too early.
         expert: further options of the scripted expert for both recordings (the pile
-            loader's: ``crowd_fill``, ``executed_noise``; docs/operators.md); its cue
-            sensors are the pipeline's (summer: drive pressure, winter_c: telescope
-            pressure) and its mistake rate is ``mistake_rate``.
+            loader's: ``crowd_fill``, ``impact_cue``, ``push_again``, ``executed_noise``;
+            docs/operators.md); its cue sensors are the pipeline's (summer: drive
+            pressure, winter_c: telescope pressure) and its mistake rate is
+            ``mistake_rate``.
         seed: base seed of the recordings.
         workers: recording processes.
     """

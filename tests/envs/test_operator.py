@@ -25,7 +25,14 @@ def test_unknown_options_are_refused_with_the_known_ones():
         make_expert(dt=DT, trigger_sensor="boom_angle")
     with pytest.raises(ValueError, match="lift"):
         OperatorStyle(lift=1.5)
-    assert set(OPTIONS) == {"trigger_sensor", "mistake_rate", "executed_noise", "crowd_fill"}
+    assert set(OPTIONS) == {
+        "trigger_sensor",
+        "mistake_rate",
+        "executed_noise",
+        "crowd_fill",
+        "impact_cue",
+        "push_again",
+    }
 
 
 def test_it_drives_on_until_it_feels_the_impact_however_long_that_takes():

@@ -33,13 +33,14 @@ AGREEMENT = 0.15  # issue #15 item 3: within 15 % of each other
 LOOSE = {"material": {"cohesion_pa": 0.0}}
 
 
-def expert_fill(condition: str, soil: str, **env_kwargs) -> float:
-    """The nominal expert's final fill on one seeded start (noiseless sensors)."""
+def expert_fill(condition: str, soil: str, style: dict | None = None, **env_kwargs) -> float:
+    """The nominal expert's final fill on one seeded start (noiseless sensors); ``style``:
+    ``OperatorStyle`` fields to set."""
     env = gym.make(
         "pilerl/PileLoading-v0", condition=condition, soil=soil, sensor_noise=0.0, **env_kwargs
     )
     obs, _ = env.reset(seed=SEED)
-    expert = make_expert(dt=env.unwrapped.dt)
+    expert = make_expert(dt=env.unwrapped.dt, **(style or {}))
     expert.reset()
     while True:
         obs, _, terminated, truncated, info = env.step(expert.act(obs))
@@ -69,6 +70,16 @@ def summer_fills() -> dict[str, float]:
 )
 def test_on_loose_gravel_the_mouth_intake_fills_like_the_particle_pile(summer_fills):
     assert abs(summer_fills["particles"] / summer_fills["mouth"] - 1.0) <= AGREEMENT
+
+
+def test_with_the_stall_cue_and_pushing_again_the_mouth_intake_fills_like_the_particles():
+    """Session 32 (docs/soil_models.md, "A stall cue that reads both soils alike"): an
+    expert that lifts once the machine stops pushing, and crowds again once the boom is
+    free, fills both soils alike (seeds 0-3: 0.442 against 0.476 by mass)."""
+    style = {"impact_cue": "stall", "push_again": True}
+    particles = expert_fill("summer", "particles", style)
+    mouth = expert_fill("summer", "heightfield", style, soil_options={"intake": "mouth"})
+    assert abs(particles / mouth - 1.0) <= AGREEMENT  # 0.453 / 0.478 when written
 
 
 def test_the_default_intake_fills_more_than_passes_the_mouth(summer_fills):

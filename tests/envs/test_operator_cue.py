@@ -1,0 +1,114 @@
+"""The stall impact cue (``OperatorStyle.impact_cue="stall"``, off by default: "drive in
+until the machine stops pushing forward, then lift") and pushing again once the boom is
+free (``OperatorStyle.push_again``, off by default); both felt on the sensors only."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from pilerl_pile_loader.operator import IMPACT_CUES, OperatorStyle, make_expert, sample_style
+from scoops import REST
+
+DT = 0.05
+# a granular face's impact (docs/soil_models.md, "Same actions on both soils"): p_d at the
+# relief on one 20 Hz reading, then 13-22 MPa while the bucket goes on into the pile [MPa]
+IMPACT_BURST = (12.8, 25.0, 16.9, 23.7, 19.2, 20.7, 21.6, 20.5, 22.7, 22.6)
+
+
+def driving(**style: object):
+    """A nominal operator rolling steadily at the pile (1 s at its driving pressure)."""
+    operator = make_expert(dt=DT, **style)
+    for _ in range(20):
+        operator.act(REST)
+    assert operator.phase == "approach"
+    return operator
+
+
+def decisions_until_filling(operator, drive_mpa: tuple[float, ...]) -> int | None:
+    """Feed the drive pressures ``drive_mpa`` [MPa]; how many it took to feel the impact."""
+    for count, drive in enumerate(drive_mpa, start=1):
+        operator.act({**REST, "drive_pressure": drive})
+        if operator.phase == "fill":
+            return count
+    return None
+
+
+def test_the_rise_cue_is_the_default_and_a_cue_must_be_known():
+    style = make_expert(dt=DT).style
+    assert style.impact_cue == "rise" and style.push_again is False
+    assert IMPACT_CUES == ("rise", "stall")
+    with pytest.raises(ValueError, match="OperatorStyle.impact_cue: must be one of"):
+        OperatorStyle(impact_cue="bump")
+    with pytest.raises(ValueError, match="OperatorStyle.push_again: must be true or false"):
+        make_expert(dt=DT, push_again="yes")
+    # drawn operators: the same draws, with the cue and the second push as asked
+    plain = sample_style(np.random.default_rng([0, 5]))
+    drawn = make_expert(
+        dt=DT, rng=np.random.default_rng([0, 5]), impact_cue="stall", push_again="true"
+    )
+    assert drawn.style == dataclasses.replace(plain, impact_cue="stall", push_again=True)
+    with pytest.raises(ValueError, match="OperatorStyle.impact_cue"):
+        make_expert(dt=DT, rng=np.random.default_rng(0), impact_cue="bump")
+
+
+def test_the_stall_cue_is_not_a_granular_faces_impact_burst_but_the_push_at_its_relief():
+    assert decisions_until_filling(driving(), IMPACT_BURST) == 3  # the rise cue takes it
+    stall = driving(impact_cue="stall")
+    assert decisions_until_filling(stall, IMPACT_BURST) is None  # still driving in
+    # the machine stops pushing forward: p_d at the relief, believed after impact_hold_s
+    assert decisions_until_filling(stall, (25.0,) * 5) == 3
+
+
+def test_on_ice_the_stall_cue_feels_the_wheels_spin_where_the_rise_cue_does_not():
+    """p_d tops out flat at what the tyres hold (12.5 MPa on winter_c), short of the
+    relief and, once the felt level has crept up, of the impact rise."""
+    spinning = (REST["drive_pressure"] + 5.0,) * 12  # nominal rise 7 MPa: 0.6 s at +5
+    assert decisions_until_filling(driving(), spinning) is None
+    count = decisions_until_filling(driving(impact_cue="stall"), spinning)
+    assert count == 7  # flat over 0.3 s: seven 20 Hz readings
+
+
+def test_on_ice_it_feels_the_stop_after_a_long_shaky_push_into_grains():
+    """winter_c, particles, seed 1 (docs/soil_models.md, "A stall cue"): p_d shakes at 7-16
+    MPa for 1.6 s, through which the felt level creeps up to ~8.4 MPa, then the machine
+    stops at 11.5 MPa: flat, well up above what rolling took (4 MPa)."""
+    shaky = (8.6, 6.9, 10.0, 6.9, 8.3, 8.9, 15.6, 8.0, 7.8, 8.8, 10.4, 11.6, 10.0, 10.2, 10.5)
+    shaky = tuple(p for p in shaky for _ in range(2))  # 1.5 s at 20 Hz
+    stopped = (11.2, 11.7, 11.5, 11.5, 11.5, 11.4, 11.3, 11.4, 11.5, 11.5)
+    assert decisions_until_filling(driving(), shaky + stopped) is None
+    stall = driving(impact_cue="stall")
+    assert decisions_until_filling(stall, shaky) is None
+    assert decisions_until_filling(stall, stopped) == 7
+
+
+def test_setting_off_is_not_felt_as_a_stop():
+    """From rest (p_d at 2 MPa), the set-off surge (5.5 MPa) settles to the driving 4.6."""
+    operator = make_expert(dt=DT, impact_cue="stall")
+    set_off = (2.0, 5.0, 5.3, 5.6, 5.6, 5.4, 5.1, 4.8, 4.7) + (4.6,) * 30
+    assert decisions_until_filling(operator, set_off) is None
+
+
+def test_a_steadily_climbing_push_is_not_felt_as_a_stop():
+    climbing = tuple(4.0 + 1.75 * k for k in range(12))  # to 23 MPa in 0.55 s
+    assert decisions_until_filling(driving(impact_cue="stall"), climbing) is None
+
+
+def test_with_push_again_it_crowds_again_once_the_boom_is_free():
+    """The first curl ends with the boom and the bucket both at their reliefs: the
+    operator stops crowding; once the boom is free again (and still low), one who pushes
+    again crowds the pile, the nominal one lifts out without the throttle."""
+    held = {**REST, "drive_pressure": 25.0, "boom_pressure": 20.0, "bucket_pressure": 20.0}
+    free = {**held, "drive_pressure": 20.0, "boom_pressure": 12.0, "bucket_pressure": 5.0}
+    free["bucket_angle"] = REST["bucket_angle"] + 0.25  # the floor has turned a step
+    throttle = {}
+    for push_again in (False, True):
+        operator = driving(push_again=push_again)
+        while operator.phase == "approach":
+            command = operator.act(held)
+        assert command[1] > 0 and command[2] == 0  # the boom at its relief: curl, foot off
+        command = operator.act(held)  # the bucket at its relief too: stop crowding
+        assert command[1] == 0 and command[2] == 0
+        throttle[push_again] = operator.act(free)[2]
+    assert throttle == {False: 0.0, True: pytest.approx(OperatorStyle().push_throttle)}
