@@ -108,11 +108,18 @@ DRIVE_RELIEF_MPA = MachineParameters.drive_relief_pressure_mpa
 DRIVE_CHARGE_MPA = MachineParameters.drive_charge_pressure_mpa  # the loop's low side
 TRACTION_CAP_FRACTION = 0.8  # a push flat below this x the relief: the wheels spin [MPa/MPa]
 SPIN_RISE_FRACTION = 0.5  # driving: p_d flat this x the impact rise above driving: stopped
-# the push held at the drive's relief: p_d within ``BACK_STEADY_MPA`` of it [MPa]
-AT_RELIEF_MPA = DRIVE_RELIEF_MPA - BACK_STEADY_MPA
+# stall cue: the push is held at the drive's relief while p_d is within this of it [MPa]
+RELIEF_HELD_BAND_MPA = 1.0
+AT_RELIEF_MPA = DRIVE_RELIEF_MPA - RELIEF_HELD_BAND_MPA
+# stall cue with a telescope trigger: the drive-pressure rise the stop is measured by (the
+# middle of a drive-pressure operator's impact rise) [MPa]
+DRIVE_IMPACT_RISE_MPA = sum(IMPACT_RISE_RANGES_MPA["drive_pressure"]) / 2
 DIG_LIFT_FRACTION = 0.5  # while still pushing, the boom is lifted gently (x ``lift``)
 STALL_WINDOW_S = 0.3  # the boom is felt to stall when, lifting this long, ...
 STALL_RISE_RAD = 0.01  # ... it has risen less than this [rad]
+# push_again: the boom is felt free once its pressure has stayed below its stall this long
+# (a person does not react to a 50 ms dip; the nominal ``impact_hold_s``) [s]
+BOOM_FREE_HOLD_S = 0.15
 DECISION_PERIOD_S = 0.05  # decide every floor(this / dt) control steps, hold between [s]
 
 
@@ -164,17 +171,19 @@ class OperatorStyle:
             demonstrations were recorded with).
         impact_cue: what makes the trigger's rise the impact (``IMPACT_CUES``): ``rise``
             (the default): the rise held ``impact_hold_s``; ``stall``: drive in until the
-            machine stops pushing forward, then lift: the rise, and the push built up:
-            the drive pressure at the drive's relief (within ``BACK_STEADY_MPA``) for
-            ``impact_hold_s``, or the machine stopped with its wheels turning (the drive
-            pressure well up and flat, as a crowding operator feels it: on ice it tops
-            out at what the tyres hold). A jumpy operator takes its small rise at once
-            with either cue.
+            machine stops pushing forward, then lift: the drive pressure held at the
+            drive's relief (within ``RELIEF_HELD_BAND_MPA``) for ``impact_hold_s`` with
+            the rise, or the machine stopped with its wheels turning (the drive pressure
+            well up on the last rolling level and flat: on ice it tops out at what the
+            tyres hold, short of the rise); with a telescope trigger, the rise held
+            ``impact_hold_s`` as well (``PileLoadingOperator._felt_impact``). A jumpy
+            operator takes its small rise at once with either cue.
         push_again: after a curl that ended with the boom and the bucket both held (the
-            operator stopped crowding), crowd the pile again once the boom is free (lifting
-            with its pressure below ``boom_stall_mpa``) while it is still below
-            ``push_lift_rad``; off by default (the operator then never pushes again in
-            that scoop). Not used by a crowding operator.
+            operator stopped crowding), crowd the pile again once the boom is free (lifting,
+            its pressure below ``boom_stall_mpa`` for ``BOOM_FREE_HOLD_S``) while it is
+            still below ``push_lift_rad``; off by default
+            (the operator then never pushes again in that scoop). Not used by a crowding
+            operator.
     """
 
     trigger_sensor: str = "drive_pressure"
@@ -343,6 +352,12 @@ def make_expert(
             f"pile_loader scripted expert: trigger_sensor must be one of {TRIGGER_SENSORS}, "
             f"got {trigger_sensor!r}"
         )
+    impact_cue = str(options.get("impact_cue", "rise"))
+    if impact_cue not in IMPACT_CUES:
+        raise ValueError(
+            f"pile_loader scripted expert: impact_cue must be one of {IMPACT_CUES}, "
+            f"got {impact_cue!r}"
+        )
     mistake_rate = _fraction("mistake_rate", options.get("mistake_rate", 0.28))
     executed_noise = _fraction("executed_noise", options.get("executed_noise", 0.0))
     if rng is None:
@@ -357,7 +372,7 @@ def make_expert(
             trigger_sensor=trigger_sensor,
             mistake_rate=mistake_rate,
             crowd_fill=_flag("crowd_fill", options.get("crowd_fill", False)),
-            impact_cue=str(options.get("impact_cue", "rise")),
+            impact_cue=impact_cue,
             push_again=_flag("push_again", options.get("push_again", False)),
         )
         noise_seed = int(rng.integers(2**63 - 1))
@@ -526,13 +541,20 @@ class PileLoadingOperator:
         as the surge when the machine sets off.
 
         With ``impact_cue`` ``stall`` ("drive in until the machine stops pushing forward,
-        then lift") the rise is not enough: the push must have built up as well, the drive
-        pressure at its relief (within ``BACK_STEADY_MPA``) for ``impact_hold_s``, or the
-        machine stopped with its wheels turning (``_felt_stop``; with a telescope trigger:
-        the drive pressure flat over ``STALL_WINDOW_S`` while the bucket is pushed back). A
-        bucket's impact on the face that drives the pressure to the relief for a few tens
+        then lift") the machine must have stopped pushing forward:
+
+        - drive-pressure trigger: the rise with the drive pressure at its relief (within
+          ``RELIEF_HELD_BAND_MPA``) for ``impact_hold_s``, or, without the rise, the
+          machine stopped with its wheels turning (``_felt_stop`` from the last rolling
+          level: on ice p_d tops out short of the rise);
+        - telescope trigger: the rise held ``impact_hold_s`` (the bucket pushed back), and
+          the drive pressure at its relief as long, or the machine stopped with its wheels
+          turning.
+
+        A bucket's impact on the face that drives the pressure to the relief for a few tens
         of milliseconds (a granular face) is not the machine stopping. A crowding operator
-        feels the stop with either cue.
+        also feels the stop with the default cue (drive-pressure trigger only). With the
+        stall cue an operator that feels neither keeps pushing until the episode ends.
         """
         st = self.style
         value, drive = reading[st.trigger_sensor], reading["drive_pressure"]
@@ -546,17 +568,18 @@ class PileLoadingOperator:
         above = value - self._felt_level >= rise
         self._above_s = self._above_s + self.dt if above else 0.0
         self._relief_s = self._relief_s + self.dt if drive >= AT_RELIEF_MPA else 0.0
+        held = above and self._above_s >= st.impact_hold_s - 1e-9
         stall_cue = st.impact_cue == "stall" and not st.jumpy
         if stall_cue:
-            flat = st.trigger_sensor != "drive_pressure" and self._steady(
-                self._approach_trace, STALL_WINDOW_S
-            )
-            felt = above and (self._relief_s >= st.impact_hold_s - 1e-9 or flat)
+            at_relief = self._relief_s >= st.impact_hold_s - 1e-9
+            stopped = self._felt_stop(drive, from_rolling=True)
+            if st.trigger_sensor == "drive_pressure":
+                felt = (above and at_relief) or stopped
+            else:  # the bucket pushed back (p_t held up), and the machine stopped pushing
+                felt = held and (at_relief or stopped)
         else:
-            felt = above and self._above_s >= st.impact_hold_s - 1e-9
-        if felt or (
-            (stall_cue or st.crowd_fill) and self._felt_stop(drive, from_rolling=stall_cue)
-        ):
+            felt = held or (st.crowd_fill and self._felt_stop(drive))
+        if felt:
             self._impact_reading = value
             return True
         return False
@@ -574,16 +597,20 @@ class PileLoadingOperator:
         steady (within ``BACK_STEADY_MPA`` over ``BACK_STEADY_S``: rolling, which the
         stop's flat ``STALL_WINDOW_S`` is too short to be) instead of the felt level now,
         which creeps up through a long, shaky push into a granular pile on ice (p_d 7-16
-        MPa for a second before the machine stops at ~11.5 MPa, 1.7 s after contact)."""
+        MPa for about 1.5 s before the machine stops at ~11.5 MPa). Felt with either
+        trigger; with a telescope trigger "well up" is ``SPIN_RISE_FRACTION`` of
+        ``DRIVE_IMPACT_RISE_MPA``."""
         st = self.style
-        if st.trigger_sensor != "drive_pressure":
+        by_drive = st.trigger_sensor == "drive_pressure"
+        if not (by_drive or from_rolling):
             return False
         steady = self._steady(self._approach_trace, BACK_STEADY_S)
         if steady:
             self._rolling_level = drive
-        rise = SPIN_RISE_FRACTION * st.impact_rise_mpa
+        rise = SPIN_RISE_FRACTION * (st.impact_rise_mpa if by_drive else DRIVE_IMPACT_RISE_MPA)
         if not self._rolling:
-            self._rolling = steady and drive - self._felt_level < rise
+            felt_level = self._felt_level if by_drive else self._rolling_level
+            self._rolling = steady and drive - felt_level < rise
             return False
         level = self._rolling_level if from_rolling else self._felt_level
         return drive - level >= rise and self._steady(self._approach_trace, STALL_WINDOW_S)
@@ -632,8 +659,9 @@ class PileLoadingOperator:
             stalled = self._boom_stalled() or reading["boom_pressure"] >= st.boom_stall_mpa
             if stalled or pitch < wanted - st.curl_band_rad:
                 self._action, self._curl_from = "curl", pitch
-            elif self._held_off and risen < st.push_lift_rad:
+            elif self._held_off and risen < st.push_lift_rad and self._boom_felt_free():
                 # the boom is free again and still low: crowd again, the push felt anew
+                # (its peak; an eased throttle stays eased)
                 self._pushing, self._held_off = True, False
                 self._push_peak = drive
         else:  # curling: on until the floor has turned and the boom is free again
@@ -788,6 +816,13 @@ class PileLoadingOperator:
         the last ``STALL_WINDOW_S``, and until that long has been felt."""
         moved = self._stall_window_change(self._boom_trace)
         return moved is None or -moved >= STALL_RISE_RAD
+
+    def _boom_felt_free(self) -> bool:
+        """Lifting after a curl, the boom is felt to be free: its pressure has stayed below
+        ``boom_stall_mpa`` for ``BOOM_FREE_HOLD_S`` (every lifting decision since the curl
+        read it below: a higher reading starts another curl, and the curl clears the
+        boom's trace)."""
+        return len(self._boom_trace) >= self._steps(BOOM_FREE_HOLD_S)
 
     def _boom_stalled(self) -> bool:
         """The boom is felt to stall: lifting for ``STALL_WINDOW_S`` and it has not risen

@@ -49,8 +49,9 @@ def test_the_rise_cue_is_the_default_and_a_cue_must_be_known():
         dt=DT, rng=np.random.default_rng([0, 5]), impact_cue="stall", push_again="true"
     )
     assert drawn.style == dataclasses.replace(plain, impact_cue="stall", push_again=True)
-    with pytest.raises(ValueError, match="OperatorStyle.impact_cue"):
-        make_expert(dt=DT, rng=np.random.default_rng(0), impact_cue="bump")
+    for rng in (None, np.random.default_rng(0)):
+        with pytest.raises(ValueError, match="scripted expert: impact_cue must be one of"):
+            make_expert(dt=DT, rng=rng, impact_cue="bump")
 
 
 def test_the_stall_cue_is_not_a_granular_faces_impact_burst_but_the_push_at_its_relief():
@@ -95,20 +96,74 @@ def test_a_steadily_climbing_push_is_not_felt_as_a_stop():
     assert decisions_until_filling(driving(impact_cue="stall"), climbing) is None
 
 
+def test_with_a_telescope_trigger_the_stall_needs_the_rise_held_and_the_machine_stopped():
+    """The bucket pushed back (p_t up by more than the nominal 0.75 MPa rise) while the
+    machine still rolls is not the stall, nor is a 50 ms blip of p_t; p_t held up with the
+    machine stopped (p_d flat, 5 MPa over what rolling took) is."""
+
+    def until_filling(operator, readings: list[tuple[float, float]]) -> int | None:
+        for count, (telescope, drive) in enumerate(readings, start=1):
+            operator.act({**REST, "telescope_pressure": telescope, "drive_pressure": drive})
+            if operator.phase == "fill":
+                return count
+        return None
+
+    pushed_back = REST["telescope_pressure"] + 1.0
+    rolling, stopped = REST["drive_pressure"], REST["drive_pressure"] + 5.0
+    options = {"trigger_sensor": "telescope_pressure"}
+    assert until_filling(driving(**options), [(pushed_back, rolling)] * 20) == 3  # rise cue
+    stall = {**options, "impact_cue": "stall"}
+    assert until_filling(driving(**stall), [(pushed_back, rolling)] * 20) is None
+    blip = [(pushed_back, stopped)] + [(REST["telescope_pressure"], stopped)] * 19
+    assert until_filling(driving(**stall), blip) is None
+    assert until_filling(driving(**stall), [(pushed_back, stopped)] * 20) == 7  # flat 0.3 s
+
+
+HELD = {**REST, "drive_pressure": 25.0, "boom_pressure": 20.0, "bucket_pressure": 20.0}
+# the curl has turned the floor a step and the boom's pressure has fallen below its stall
+FREE = {**HELD, "drive_pressure": 20.0, "boom_pressure": 12.0, "bucket_pressure": 5.0}
+FREE["bucket_angle"] = REST["bucket_angle"] + 0.25
+
+
+def curled_with_both_held(push_again: bool):
+    """An operator whose first curl ended with the boom and the bucket both at their
+    reliefs: it has stopped crowding."""
+    operator = driving(push_again=push_again)
+    while operator.phase == "approach":
+        command = operator.act(HELD)
+    assert command[1] > 0 and command[2] == 0  # the boom at its relief: curl, foot off
+    command = operator.act(HELD)  # the bucket at its relief too: stop crowding
+    assert command[1] == 0 and command[2] == 0
+    return operator
+
+
+def throttles_while_lifting(operator, boom_from_rad: float, readings: list[dict]) -> list:
+    """The throttle over ``readings``, the boom ``boom_from_rad`` above rest and coming up
+    0.005 rad a decision (so it is never felt to stall)."""
+    return [
+        float(
+            operator.act({**reading, "boom_angle": REST["boom_angle"] + boom_from_rad + 0.005 * k})[
+                2
+            ]
+        )
+        for k, reading in enumerate(readings)
+    ]
+
+
 def test_with_push_again_it_crowds_again_once_the_boom_is_free():
-    """The first curl ends with the boom and the bucket both at their reliefs: the
-    operator stops crowding; once the boom is free again (and still low), one who pushes
-    again crowds the pile, the nominal one lifts out without the throttle."""
-    held = {**REST, "drive_pressure": 25.0, "boom_pressure": 20.0, "bucket_pressure": 20.0}
-    free = {**held, "drive_pressure": 20.0, "boom_pressure": 12.0, "bucket_pressure": 5.0}
-    free["bucket_angle"] = REST["bucket_angle"] + 0.25  # the floor has turned a step
-    throttle = {}
-    for push_again in (False, True):
-        operator = driving(push_again=push_again)
-        while operator.phase == "approach":
-            command = operator.act(held)
-        assert command[1] > 0 and command[2] == 0  # the boom at its relief: curl, foot off
-        command = operator.act(held)  # the bucket at its relief too: stop crowding
-        assert command[1] == 0 and command[2] == 0
-        throttle[push_again] = operator.act(free)[2]
-    assert throttle == {False: 0.0, True: pytest.approx(OperatorStyle().push_throttle)}
+    """Once the boom's pressure has stayed below its stall for 0.15 s (four 20 Hz readings,
+    both ends) and the boom is still low, one who pushes again crowds the pile; the
+    nominal one lifts out without the throttle."""
+    push = OperatorStyle().push_throttle
+    assert throttles_while_lifting(curled_with_both_held(False), 0.0, [FREE] * 10) == [0.0] * 10
+    assert throttles_while_lifting(curled_with_both_held(True), 0.0, [FREE] * 10) == (
+        [0.0] * 3 + [pytest.approx(push)] * 7
+    )
+
+
+def test_push_again_waits_for_a_boom_felt_free_and_still_low():
+    """A boom freed for single readings (pinned again at once) or risen past
+    ``push_lift_rad`` (0.08 rad) is not crowded again: no throttle flicker."""
+    flicker = [FREE, HELD] * 10
+    assert throttles_while_lifting(curled_with_both_held(True), 0.0, flicker) == [0.0] * 20
+    assert throttles_while_lifting(curled_with_both_held(True), 0.1, [FREE] * 10) == [0.0] * 10

@@ -18,7 +18,10 @@ test should be judged on the benchmark's four seeds
 Session 30 raised the particle pile's CG iterations from 20 to 30 (the tyres' contacts were
 unresolved at 20): the summer fills above are the 20-iteration pile's; at 30 the four seeds
 fill 0.29 (0.22, 0.37, 0.28, 0.28), so the first test is an expected failure until that is
-traced (docs/soil_models.md, "The drive pressure's chatter on ice")."""
+traced (docs/soil_models.md, "The drive pressure's chatter on ice"). Session 31 traced it
+to the expert's impact cue; session 32's stall cue with pushing again (off by default)
+fills the two soils alike, which the second test checks (docs/soil_models.md, "A stall cue
+that reads both soils alike")."""
 
 from __future__ import annotations
 
@@ -75,11 +78,11 @@ def test_on_loose_gravel_the_mouth_intake_fills_like_the_particle_pile(summer_fi
 def test_with_the_stall_cue_and_pushing_again_the_mouth_intake_fills_like_the_particles():
     """Session 32 (docs/soil_models.md, "A stall cue that reads both soils alike"): an
     expert that lifts once the machine stops pushing, and crowds again once the boom is
-    free, fills both soils alike (seeds 0-3: 0.442 against 0.476 by mass)."""
+    free, fills both soils alike (seeds 0-3: 0.428 against 0.476 by mass)."""
     style = {"impact_cue": "stall", "push_again": True}
     particles = expert_fill("summer", "particles", style)
     mouth = expert_fill("summer", "heightfield", style, soil_options={"intake": "mouth"})
-    assert abs(particles / mouth - 1.0) <= AGREEMENT  # 0.453 / 0.478 when written
+    assert abs(particles / mouth - 1.0) <= AGREEMENT  # 0.467 / 0.478 when written
 
 
 def test_the_default_intake_fills_more_than_passes_the_mouth(summer_fills):
