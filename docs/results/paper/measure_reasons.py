@@ -59,9 +59,12 @@ def d_i_check_cell_of(settings: dict) -> Cell:
 
 
 def load_episodes(
-    root: Path, sweeps: list[str] = SWEEPS, cell_of=cell_of
+    root: Path, sweeps: list[str] = SWEEPS, cell_of_job=cell_of, refuse_repeats: bool = False
 ) -> dict[Cell, dict[tuple, dict]]:
-    """Every evaluated episode per cell, keyed by (training seed, condition, episode)."""
+    """Every evaluated episode per cell (``cell_of_job`` of each job's settings), keyed by
+    (training seed, condition, episode). A cell two sweeps share (Exp. 1's cells are also
+    in Exp. 2) keeps the later sweep's episodes; with ``refuse_repeats`` a repeated key
+    (the same seed of a cell in two sweeps) fails instead."""
     cells: dict[Cell, dict[tuple, dict]] = {}
     for sweep in sweeps:
         for run in sorted((root / "multirun" / sweep).glob("*/run.json")):
@@ -69,10 +72,13 @@ def load_episodes(
             if not table.exists():  # a job still running (or never evaluated)
                 continue
             settings = json.loads(run.read_text())["settings"]
-            episodes = cells.setdefault(cell_of(settings), {})
+            episodes = cells.setdefault(cell_of_job(settings), {})
             with open(table) as f:
                 for row in csv.DictReader(f):
-                    episodes[(settings["seed"], row["condition"], row["episode"])] = row
+                    key = (settings["seed"], row["condition"], row["episode"])
+                    if refuse_repeats and key in episodes:
+                        raise SystemExit(f"{run.parent}: seed {key[0]} evaluated twice")
+                    episodes[key] = row
     return cells
 
 
@@ -156,11 +162,15 @@ def print_d_i_checks(root: Path) -> None:
     present = [s for s in D_I_CHECKS if (root / "multirun" / s).is_dir()]
     if not present:
         return
-    cells = load_episodes(root, present, d_i_check_cell_of)
+    cells = load_episodes(root, present, d_i_check_cell_of, refuse_repeats=True)
     print("\nD_I checks (" + ", ".join(present) + "): winter A-D pooled")
     for cell, episodes in sorted(cells.items()):
         rows = [r for k, r in episodes.items() if k[1].startswith("winter")]
-        per_seed = Counter(k[0] for k, r in episodes.items() if r["success"] == "True")
+        per_seed = Counter(
+            k[0]
+            for k, r in episodes.items()
+            if k[1].startswith("winter") and r["success"] == "True"
+        )
         seeds = sorted({k[0] for k in episodes})
         modes = Counter(r["failure_mode"] for r in rows if r["failure_mode"] != "success")
         print(
