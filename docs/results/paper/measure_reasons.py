@@ -6,7 +6,21 @@ It prints, per cell (controller, inputs, data, summer or winter A-D pooled): epi
 successes, median fill, median first boom lift and penetration time (s), median episode
 length (s), finished scoops, median peak wheel slip (m/s) and the failure modes; then
 paired sign tests over the same (training seed, condition, start) and the demonstrations'
-success by operator style. Writes nothing.
+success by operator style; and, where they were run, the D_I checks (README, "D_I fails
+for every trainer"): NNetV2 and RF with p_t on D_II, D_I and D_I of the successful
+demonstrations only, and NNetV2 on D_I at the paper's 150 epochs. Writes nothing.
+
+The D_I checks' sweeps (about 25 and 20 minutes on one core):
+    python recipes/build_dataset.py dataset=d_i dataset.successful_only=true \
+        out_dir=data/datasets/d_i_success_summer
+    D=data/datasets
+    python recipes/train_bc.py --multirun +experiment=exp2_data_and_pt seed=0,1,2 \
+        policy=nnetv2,rf sensors=s_pt evaluation.workers=1 evaluation.videos=false \
+        train_data=$D/d_ii_summer,$D/d_i_summer,$D/d_i_success_summer \
+        hydra.sweep.dir=multirun/d_i_check
+    python recipes/train_bc.py --multirun +experiment=exp2_data_and_pt seed=0,1,2 \
+        policy=nnetv2 sensors=s_pt train_data=data/datasets/d_i_summer gradient_steps=null \
+        evaluation.workers=1 evaluation.videos=false hydra.sweep.dir=multirun/d_i_150_epochs
 """
 
 from __future__ import annotations
@@ -19,6 +33,9 @@ from math import comb
 from pathlib import Path
 
 SWEEPS = ["exp1_summer_to_winter", "exp2_data_and_pt", "exp3_attention"]
+# the D_I checks' sweeps, where run (the 150-epoch sweep's seed 2 may run on its own, in
+# d_i_150_epochs_seed2, beside seeds 0-1 on a second core)
+D_I_CHECKS = ["d_i_check", "d_i_150_epochs", "d_i_150_epochs_seed2"]
 Cell = tuple[str, str, str]
 
 
@@ -30,16 +47,38 @@ def cell_of(settings: dict) -> Cell:
     return settings["policy.name"], inputs, data
 
 
-def load_episodes(root: Path) -> dict[Cell, dict[tuple, dict]]:
-    """Every evaluated episode per cell, keyed by (training seed, condition, episode)."""
+def d_i_check_cell_of(settings: dict) -> Cell:
+    """(controller, inputs, dataset) of a D_I check's job: the dataset named by what
+    distinguishes it (D_I of the successful demonstrations, or at 150 epochs)."""
+    policy, inputs, data = cell_of(settings)
+    if "d_i_success" in settings["train_data"]:
+        data = "D_I successful only"
+    elif data == "D_I" and settings["gradient_steps"] is None:
+        data = f"D_I {settings['epochs']} epochs"
+    return policy, inputs, data
+
+
+def load_episodes(
+    root: Path, sweeps: list[str] = SWEEPS, cell_of_job=cell_of, refuse_repeats: bool = False
+) -> dict[Cell, dict[tuple, dict]]:
+    """Every evaluated episode per cell (``cell_of_job`` of each job's settings), keyed by
+    (training seed, condition, episode). A cell two sweeps share (Exp. 1's cells are also
+    in Exp. 2) keeps the later sweep's episodes; with ``refuse_repeats`` a repeated key
+    (the same seed of a cell in two sweeps) fails instead."""
     cells: dict[Cell, dict[tuple, dict]] = {}
-    for sweep in SWEEPS:
+    for sweep in sweeps:
         for run in sorted((root / "multirun" / sweep).glob("*/run.json")):
+            table = run.parent / "evaluation" / "episodes.csv"
+            if not table.exists():  # a job still running (or never evaluated)
+                continue
             settings = json.loads(run.read_text())["settings"]
-            episodes = cells.setdefault(cell_of(settings), {})
-            with open(run.parent / "evaluation" / "episodes.csv") as f:
+            episodes = cells.setdefault(cell_of_job(settings), {})
+            with open(table) as f:
                 for row in csv.DictReader(f):
-                    episodes[(settings["seed"], row["condition"], row["episode"])] = row
+                    key = (settings["seed"], row["condition"], row["episode"])
+                    if refuse_repeats and key in episodes:
+                        raise SystemExit(f"{run.parent}: seed {key[0]} evaluated twice")
+                    episodes[key] = row
     return cells
 
 
@@ -98,16 +137,60 @@ def main() -> None:
     demos = json.loads((root / "data/demos/summer/index.json").read_text())["episodes"]
     for success in (True, False):
         group = [d for d in demos if d["success"] is success]
-        style = Counter(
-            "hesitant" if d["operator"]["style"]["hesitant"] else
-            "jumpy" if d["operator"]["style"]["jumpy"] else "other"
-            for d in group
-        )  # fmt: skip
+        style = Counter(operator_kind(d["operator"]["style"]) for d in group)
         print(
             "successful" if success else "failed", len(group),
             sum(d["n_samples"] for d in group),
             sum(d["n_samples"] / d["rate_hz"] >= 29.9 for d in group), dict(style),
         )  # fmt: skip
+    print_d_i_checks(root)
+
+
+def operator_kind(style: dict) -> str:
+    """The kind of a drawn operator (``operator.sample_style``): hesitant, jumpy, timid
+    (curls 3-4 rad of floor pitch per rad of lift where the others curl 1.8) or other."""
+    if style["hesitant"]:
+        return "hesitant"
+    if style["jumpy"]:
+        return "jumpy"
+    return "timid" if style["curl_per_lift"] > 2.0 else "other"
+
+
+def print_d_i_checks(root: Path) -> None:
+    """Winter A-D pooled success per D_I check cell, and paired sign tests against the
+    same controller on D_I and on D_II (same training seed, day and start)."""
+    present = [s for s in D_I_CHECKS if (root / "multirun" / s).is_dir()]
+    if not present:
+        return
+    cells = load_episodes(root, present, d_i_check_cell_of, refuse_repeats=True)
+    print("\nD_I checks (" + ", ".join(present) + "): winter A-D pooled")
+    for cell, episodes in sorted(cells.items()):
+        rows = [r for k, r in episodes.items() if k[1].startswith("winter")]
+        per_seed = Counter(
+            k[0]
+            for k, r in episodes.items()
+            if k[1].startswith("winter") and r["success"] == "True"
+        )
+        seeds = sorted({k[0] for k in episodes})
+        modes = Counter(r["failure_mode"] for r in rows if r["failure_mode"] != "success")
+        print(
+            " ".join(cell), f"{sum(r['success'] == 'True' for r in rows)}/{len(rows)}",
+            "per seed", [per_seed[s] for s in seeds], f"fill {median(rows, 'fill_fraction'):.2f}",
+            f"lift {median(rows, 'first_lift_s'):.1f} s", dict(modes),
+        )  # fmt: skip
+    for cell in sorted(cells):
+        for base in ("D_I", "D_II"):
+            other = (cell[0], cell[1], base)
+            if cell[2] in ("D_I", "D_II") or other not in cells:
+                continue
+            a, b = cells[cell], cells[other]
+            keys = [k for k in a.keys() & b.keys() if k[1].startswith("winter")]
+            a_only = sum(a[k]["success"] == "True" and b[k]["success"] != "True" for k in keys)
+            b_only = sum(b[k]["success"] == "True" and a[k]["success"] != "True" for k in keys)
+            print(
+                " ".join(cell), "vs", base, f"({len(keys)} pairs): {a_only} vs {b_only}",
+                f"better, sign test p={sign_test_p(a_only, b_only):.2g}",
+            )  # fmt: skip
 
 
 if __name__ == "__main__":
