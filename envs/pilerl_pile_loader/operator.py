@@ -180,8 +180,9 @@ class OperatorStyle:
             operator takes its small rise at once with either cue.
         push_again: after a curl that ended with the boom and the bucket both held (the
             operator stopped crowding), crowd the pile again once the boom is free (lifting,
-            its pressure below ``boom_stall_mpa`` for ``BOOM_FREE_HOLD_S``) while it is
-            still below ``push_lift_rad``; off by default
+            its pressure below ``boom_stall_mpa`` for ``BOOM_FREE_HOLD_S``; after a first
+            re-push, come up ``CROWD_LIFT_STEP_RAD`` since) while it is still below
+            ``push_lift_rad``; off by default
             (the operator then never pushes again in that scoop). Not used by a crowding
             operator.
     """
@@ -461,11 +462,13 @@ class PileLoadingOperator:
         self._felt_level: float | None = None  # trigger reading felt while driving [MPa]
         self._above_s = 0.0  # how long the trigger has been above the impact level [s]
         self._relief_s = 0.0  # stall cue: how long the drive has been at its relief [s]
+        self._pushed_back = False  # stall cue, telescope trigger: the p_t rise has been held
         self._impact_reading = 0.0
         self._waiting = False  # hesitant operator waiting after the impact
         self._action = "lift"  # in filling: lift or curl
         self._pushing = False  # in filling: still crowding the pile with the throttle
         self._held_off = False  # in filling: stopped crowding with boom and bucket both held
+        self._repushed_at: float | None = None  # push_again: boom angle at the last re-push
         self._curl_from = 0.0  # bucket-floor pitch when the curl began [rad]
         # what the operator remembers, as long as its windows (in decisions)
         self._boom_trace: deque[float] = deque(maxlen=self._steps(STALL_WINDOW_S))  # lifting
@@ -575,8 +578,10 @@ class PileLoadingOperator:
             stopped = self._felt_stop(drive, from_rolling=True)
             if st.trigger_sensor == "drive_pressure":
                 felt = (above and at_relief) or stopped
-            else:  # the bucket pushed back (p_t held up), and the machine stopped pushing
-                felt = held and (at_relief or stopped)
+            else:  # the bucket pushed back (the p_t rise held once, remembered while the
+                # felt level creeps up behind it), and the machine stopped pushing
+                self._pushed_back = self._pushed_back or held
+                felt = self._pushed_back and (at_relief or stopped)
         else:
             felt = held or (st.crowd_fill and self._felt_stop(drive))
         if felt:
@@ -590,8 +595,8 @@ class PileLoadingOperator:
         ``drive`` [MPa] comes well up (``SPIN_RISE_FRACTION`` of the impact rise above the
         felt level) and stays flat (within ``BACK_STEADY_MPA`` over ``STALL_WINDOW_S``); on
         ice it tops out at what the tyres hold, below the rise the operator waits for.
-        Felt on the drive pressure only (with a ``drive_pressure`` trigger: the felt level
-        is the drive's).
+        With a ``drive_pressure`` trigger (the felt level is the drive's); with a
+        telescope trigger only ``from_rolling``.
 
         ``from_rolling`` (the stall cue): well up above the drive pressure when last
         steady (within ``BACK_STEADY_MPA`` over ``BACK_STEADY_S``: rolling, which the
@@ -609,6 +614,7 @@ class PileLoadingOperator:
             self._rolling_level = drive
         rise = SPIN_RISE_FRACTION * (st.impact_rise_mpa if by_drive else DRIVE_IMPACT_RISE_MPA)
         if not self._rolling:
+            # with a telescope trigger the level is the one just taken: steady is rolling
             felt_level = self._felt_level if by_drive else self._rolling_level
             self._rolling = steady and drive - felt_level < rise
             return False
@@ -659,11 +665,11 @@ class PileLoadingOperator:
             stalled = self._boom_stalled() or reading["boom_pressure"] >= st.boom_stall_mpa
             if stalled or pitch < wanted - st.curl_band_rad:
                 self._action, self._curl_from = "curl", pitch
-            elif self._held_off and risen < st.push_lift_rad and self._boom_felt_free():
+            elif self._held_off and risen < st.push_lift_rad and self._repush_felt(boom):
                 # the boom is free again and still low: crowd again, the push felt anew
                 # (its peak; an eased throttle stays eased)
                 self._pushing, self._held_off = True, False
-                self._push_peak = drive
+                self._repushed_at, self._push_peak = boom, drive
         else:  # curling: on until the floor has turned and the boom is free again
             turned = pitch >= max(self._curl_from + st.curl_step_rad, wanted + st.curl_band_rad)
             boom_held = reading["boom_pressure"] >= st.boom_stall_mpa
@@ -816,6 +822,13 @@ class PileLoadingOperator:
         the last ``STALL_WINDOW_S``, and until that long has been felt."""
         moved = self._stall_window_change(self._boom_trace)
         return moved is None or -moved >= STALL_RISE_RAD
+
+    def _repush_felt(self, boom: float) -> bool:
+        """``push_again``: the boom (at ``boom`` [rad]) is felt free (``_boom_felt_free``)
+        and has come up ``CROWD_LIFT_STEP_RAD`` since the last re-push, if any: a boom
+        pinned by every push is not pulsed with the throttle."""
+        stepped = self._repushed_at is None or boom >= self._repushed_at + CROWD_LIFT_STEP_RAD
+        return stepped and self._boom_felt_free()
 
     def _boom_felt_free(self) -> bool:
         """Lifting after a curl, the boom is felt to be free: its pressure has stayed below

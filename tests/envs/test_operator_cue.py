@@ -114,9 +114,18 @@ def test_with_a_telescope_trigger_the_stall_needs_the_rise_held_and_the_machine_
     assert until_filling(driving(**options), [(pushed_back, rolling)] * 20) == 3  # rise cue
     stall = {**options, "impact_cue": "stall"}
     assert until_filling(driving(**stall), [(pushed_back, rolling)] * 20) is None
-    blip = [(pushed_back, stopped)] + [(REST["telescope_pressure"], stopped)] * 19
-    assert until_filling(driving(**stall), blip) is None
+    free = REST["telescope_pressure"]
+    blip = [(free, stopped)] * 6 + [(pushed_back, stopped)] + [(free, stopped)] * 13
+    assert until_filling(driving(**stall), blip) is None  # a blip just as the stop is felt
     assert until_filling(driving(**stall), [(pushed_back, stopped)] * 20) == 7  # flat 0.3 s
+    # pushed back first, stopped after a second of shaking (the rise has faded by then)
+    shaky = [(pushed_back, rolling + (5.0 if k % 2 else 1.0)) for k in range(20)]
+    assert until_filling(driving(**stall), shaky + [(free, stopped)] * 10) == 26  # 20th: 9
+    # held at the drive's relief with p_t pushed back: after impact_hold_s; a granular
+    # face's burst with p_t up is not the relief held
+    assert until_filling(driving(**stall), [(pushed_back, 25.0)] * 10) == 3
+    burst = [(pushed_back, drive) for drive in IMPACT_BURST]
+    assert until_filling(driving(**stall), burst) is None
 
 
 HELD = {**REST, "drive_pressure": 25.0, "boom_pressure": 20.0, "bucket_pressure": 20.0}
@@ -137,14 +146,16 @@ def curled_with_both_held(push_again: bool):
     return operator
 
 
-def throttles_while_lifting(operator, boom_from_rad: float, readings: list[dict]) -> list:
+def throttles_while_lifting(
+    operator, boom_from_rad: float, readings: list[dict], rate_rad: float = 0.005
+) -> list:
     """The throttle over ``readings``, the boom ``boom_from_rad`` above rest and coming up
-    0.005 rad a decision (so it is never felt to stall)."""
+    ``rate_rad`` a decision (so it is never felt to stall)."""
     return [
         float(
-            operator.act({**reading, "boom_angle": REST["boom_angle"] + boom_from_rad + 0.005 * k})[
-                2
-            ]
+            operator.act(
+                {**reading, "boom_angle": REST["boom_angle"] + boom_from_rad + rate_rad * k}
+            )[2]
         )
         for k, reading in enumerate(readings)
     ]
@@ -167,3 +178,14 @@ def test_push_again_waits_for_a_boom_felt_free_and_still_low():
     flicker = [FREE, HELD] * 10
     assert throttles_while_lifting(curled_with_both_held(True), 0.0, flicker) == [0.0] * 20
     assert throttles_while_lifting(curled_with_both_held(True), 0.1, [FREE] * 10) == [0.0] * 10
+
+
+def test_push_again_pushes_a_pinned_boom_again_only_once_it_has_come_up_a_step():
+    """Every push pins the boom (a curl that ends with the boom and the bucket held, then
+    free again): the next push waits until the boom has come up 0.03 rad since the last
+    one (here 0.004 rad a decision), not every 0.3 s."""
+    pinned = ([FREE] * 4 + [HELD] * 2) * 4  # pushed on the 4th free reading, then pinned
+    throttles = throttles_while_lifting(curled_with_both_held(True), 0.0, pinned, 0.004)
+    pushes = [k for k, throttle in enumerate(throttles) if throttle > 0]
+    # at 0.012 rad; at 0.036 (decision 9) not yet; at 0.060; at 0.084 past push_lift_rad
+    assert pushes == [3, 15]
