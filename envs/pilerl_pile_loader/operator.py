@@ -182,9 +182,8 @@ class OperatorStyle:
             operator stopped crowding), crowd the pile again once the boom is free (lifting,
             its pressure below ``boom_stall_mpa`` for ``BOOM_FREE_HOLD_S``; after a first
             re-push, come up ``CROWD_LIFT_STEP_RAD`` since) while it is still below
-            ``push_lift_rad``; off by default
-            (the operator then never pushes again in that scoop). Not used by a crowding
-            operator.
+            ``push_lift_rad``; off by default (the operator then never pushes again in that
+            scoop). Not used by a crowding operator.
     """
 
     trigger_sensor: str = "drive_pressure"
@@ -613,10 +612,8 @@ class PileLoadingOperator:
         if steady:
             self._rolling_level = drive
         rise = SPIN_RISE_FRACTION * (st.impact_rise_mpa if by_drive else DRIVE_IMPACT_RISE_MPA)
-        if not self._rolling:
-            # with a telescope trigger the level is the one just taken: steady is rolling
-            felt_level = self._felt_level if by_drive else self._rolling_level
-            self._rolling = steady and drive - felt_level < rise
+        if not self._rolling:  # with a telescope trigger, steady is rolling
+            self._rolling = steady and (not by_drive or drive - self._felt_level < rise)
             return False
         level = self._rolling_level if from_rolling else self._felt_level
         return drive - level >= rise and self._steady(self._approach_trace, STALL_WINDOW_S)

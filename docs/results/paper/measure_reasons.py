@@ -122,15 +122,12 @@ def main() -> None:
     ]
     print("\npaired over (training seed, winter day, start): A vs B")
     for a_cell, b_cell in pairs:
-        a, b = cells[a_cell], cells[b_cell]
-        keys = [k for k in a.keys() & b.keys() if k[1].startswith("winter")]
-        a_ok = {k: a[k]["success"] == "True" for k in keys}
-        b_ok = {k: b[k]["success"] == "True" for k in keys}
-        a_only = sum(a_ok[k] and not b_ok[k] for k in keys)
-        b_only = sum(b_ok[k] and not a_ok[k] for k in keys)
+        a_ok, b_ok = paired_winter(cells[a_cell], cells[b_cell])
+        a_only = sum(a and not b for a, b in zip(a_ok, b_ok, strict=True))
+        b_only = sum(b and not a for a, b in zip(a_ok, b_ok, strict=True))
         print(
-            " ".join(a_cell), f"{sum(a_ok.values())}/{len(keys)} vs", " ".join(b_cell),
-            f"{sum(b_ok.values())}/{len(keys)}: {a_only} vs {b_only} better,",
+            " ".join(a_cell), f"{sum(a_ok)}/{len(a_ok)} vs", " ".join(b_cell),
+            f"{sum(b_ok)}/{len(b_ok)}: {a_only} vs {b_only} better,"
             f"sign test p={sign_test_p(a_only, b_only):.2g}",
         )  # fmt: skip
     print("\ndemonstrations (data/demos/summer): success, samples, ran to 30 s, style")
@@ -144,6 +141,13 @@ def main() -> None:
             sum(d["n_samples"] / d["rate_hz"] >= 29.9 for d in group), dict(style),
         )  # fmt: skip
     print_d_i_checks(root)
+
+
+def paired_winter(a: dict[tuple, dict], b: dict[tuple, dict]) -> tuple[list, list]:
+    """Success of two cells' episodes on their shared winter keys (training seed, winter
+    day, start), in the same order: two lists of booleans."""
+    keys = [k for k in a.keys() & b.keys() if k[1].startswith("winter")]
+    return [a[k]["success"] == "True" for k in keys], [b[k]["success"] == "True" for k in keys]
 
 
 def operator_kind(style: dict) -> str:
@@ -165,12 +169,9 @@ def print_d_i_checks(root: Path) -> None:
     cells = load_episodes(root, present, d_i_check_cell_of, refuse_repeats=True)
     print("\nD_I checks (" + ", ".join(present) + "): winter A-D pooled")
     for cell, episodes in sorted(cells.items()):
-        rows = [r for k, r in episodes.items() if k[1].startswith("winter")]
-        per_seed = Counter(
-            k[0]
-            for k, r in episodes.items()
-            if k[1].startswith("winter") and r["success"] == "True"
-        )
+        winter = {k: r for k, r in episodes.items() if k[1].startswith("winter")}
+        rows = list(winter.values())
+        per_seed = Counter(k[0] for k, r in winter.items() if r["success"] == "True")
         seeds = sorted({k[0] for k in episodes})
         modes = Counter(r["failure_mode"] for r in rows if r["failure_mode"] != "success")
         print(
@@ -183,12 +184,11 @@ def print_d_i_checks(root: Path) -> None:
             other = (cell[0], cell[1], base)
             if cell[2] in ("D_I", "D_II") or other not in cells:
                 continue
-            a, b = cells[cell], cells[other]
-            keys = [k for k in a.keys() & b.keys() if k[1].startswith("winter")]
-            a_only = sum(a[k]["success"] == "True" and b[k]["success"] != "True" for k in keys)
-            b_only = sum(b[k]["success"] == "True" and a[k]["success"] != "True" for k in keys)
+            a_ok, b_ok = paired_winter(cells[cell], cells[other])
+            a_only = sum(a and not b for a, b in zip(a_ok, b_ok, strict=True))
+            b_only = sum(b and not a for a, b in zip(a_ok, b_ok, strict=True))
             print(
-                " ".join(cell), "vs", base, f"({len(keys)} pairs): {a_only} vs {b_only}",
+                " ".join(cell), "vs", base, f"({len(a_ok)} pairs): {a_only} vs {b_only}",
                 f"better, sign test p={sign_test_p(a_only, b_only):.2g}",
             )  # fmt: skip
 
