@@ -15,11 +15,15 @@
 # controllers on summer and winter_c only, 4 episodes per seed: about 1.5 hours (20
 # iterations; about 3 with 30) on one
 # core; a third process on a 2-core machine, so better after A or B). Run from the repository root;
-# PYTHON defaults to .venv/bin/python, NICE to 10. Each step's output goes to
+# PYTHON defaults to .venv/bin/python, NICE to 10. EXPERT adds scripted-expert overrides to
+# prep's recordings: EXPERT="+expert.impact_cue=rise +expert.push_again=false" records with
+# the operator before session 33, the one docs/results/paper/ was made with (into a fresh
+# data/demos: a store recorded by another expert is refused). Each step's output goes to
 # logs/paper_experiments/<step>.out and its start and end to logs/paper_experiments/steps.log.
 set -u
 PYTHON=${PYTHON:-.venv/bin/python}
 NICE=${NICE:-10}
+EXPERT=${EXPERT:-}
 LOGS=logs/paper_experiments
 mkdir -p "$LOGS"
 export OMP_NUM_THREADS=1
@@ -49,9 +53,11 @@ exp3_with_pt() {
 
 case ${1:-} in
 prep)
-    step record_summer recipes/record.py
+    # shellcheck disable=SC2086  # EXPERT: zero or more overrides, split on spaces
+    step record_summer recipes/record.py $EXPERT
+    # shellcheck disable=SC2086
     step record_winter_c recipes/record.py env.condition=winter_c n_episodes=10 \
-        +expert.trigger_sensor=telescope_pressure out_dir=data/demos/winter_c_validation
+        +expert.trigger_sensor=telescope_pressure out_dir=data/demos/winter_c_validation $EXPERT
     step build_datasets recipes/build_dataset.py --multirun dataset=d_i,d_ii
     ;;
 A)

@@ -39,7 +39,9 @@ until the machine stops pushing forward (the drive pressure held at its relief, 
 well above what rolling took: the wheels turning on ice), so a granular face's brief
 impact spike is not taken for the impact; with ``OperatorStyle.push_again`` it crowds
 again once the boom is free after a curl that found the boom and the bucket both held.
-Both off by default (docs/operators.md, "Stall cue and pushing again").
+Both on by default since session 33 (docs/operators.md, "Stall cue and pushing again");
+``impact_cue="rise"`` and ``push_again=False`` give the operator the demonstrations were
+recorded with until then.
 
 Styles (``OperatorStyle``) make operators differ (pace, valve openings, how far they push
 and lift, how much they curl per lift), and ``sample_style`` draws one per episode. The
@@ -84,6 +86,11 @@ PHASES: tuple[str, ...] = ("approach", "fill", "finish")
 TRIGGER_SENSORS: tuple[str, ...] = ("drive_pressure", "telescope_pressure")
 # what makes a rise of the trigger sensor the impact (``OperatorStyle.impact_cue``)
 IMPACT_CUES: tuple[str, ...] = ("rise", "stall")
+# the default operator drives in until the machine stops and pushes again once the boom is
+# free (docs/operators.md, "Stall cue and pushing again": the cue a granular face's brief
+# impact burst does not fool, so that both soil models are read alike)
+DEFAULT_IMPACT_CUE = "stall"
+DEFAULT_PUSH_AGAIN = True
 
 # How far above the felt driving level the trigger sensor must rise to be felt as impact,
 # drawn per operator [MPa]: the drive pressure climbs to its relief (~25 MPa) within a
@@ -169,8 +176,8 @@ class OperatorStyle:
             docs/operators.md "Crowd fill"): keep pushing while the boom rises, so the
             bucket mouth keeps passing through material; off by default (the operator the
             demonstrations were recorded with).
-        impact_cue: what makes the trigger's rise the impact (``IMPACT_CUES``): ``rise``
-            (the default): the rise held ``impact_hold_s``; ``stall``: drive in until the
+        impact_cue: what makes the trigger's rise the impact (``IMPACT_CUES``): ``rise``:
+            the rise held ``impact_hold_s``; ``stall`` (the default): drive in until the
             machine stops pushing forward, then lift: the drive pressure held at the
             drive's relief (within ``RELIEF_HELD_BAND_MPA``) for ``impact_hold_s`` with
             the rise, or the machine stopped with its wheels turning (the drive pressure
@@ -182,7 +189,7 @@ class OperatorStyle:
             operator stopped crowding), crowd the pile again once the boom is free (lifting,
             its pressure below ``boom_stall_mpa`` for ``BOOM_FREE_HOLD_S``; after a first
             re-push, come up ``CROWD_LIFT_STEP_RAD`` since) while it is still below
-            ``push_lift_rad``; off by default (the operator then never pushes again in that
+            ``push_lift_rad``; on by default (off: the operator never pushes again in that
             scoop). Not used by a crowding operator.
     """
 
@@ -213,8 +220,8 @@ class OperatorStyle:
     push_while_curling: bool = False
     back_off_throttle: float = 0.3
     crowd_fill: bool = False
-    impact_cue: str = "rise"
-    push_again: bool = False
+    impact_cue: str = DEFAULT_IMPACT_CUE
+    push_again: bool = DEFAULT_PUSH_AGAIN
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -270,8 +277,8 @@ def sample_style(
     trigger_sensor: str = "drive_pressure",
     mistake_rate: float = 0.28,
     crowd_fill: bool = False,
-    impact_cue: str = "rise",
-    push_again: bool = False,
+    impact_cue: str = DEFAULT_IMPACT_CUE,
+    push_again: bool = DEFAULT_PUSH_AGAIN,
 ) -> OperatorStyle:
     """Draw one operator: varied in pace, valve openings, how they fill and how briskly
     they back off; with probability ``mistake_rate`` one who makes one of the paper's
@@ -331,8 +338,8 @@ def make_expert(
             ``executed_noise`` (std of the DART perturbation of the executed boom and
             bucket commands, in [0, 1]; 0 = off), ``crowd_fill`` (fill by crowding through
             the face, ``OperatorStyle.crowd_fill``; default off), ``impact_cue`` (``rise``
-            or ``stall``, ``OperatorStyle.impact_cue``; default ``rise``), ``push_again``
-            (``OperatorStyle.push_again``; default off); for the nominal operator
+            or ``stall``, ``OperatorStyle.impact_cue``; default ``stall``), ``push_again``
+            (``OperatorStyle.push_again``; default on); for the nominal operator
             also any ``OperatorStyle`` field (e.g. ``jumpy``, ``push_throttle``) to set its
             style.
     """
@@ -352,7 +359,7 @@ def make_expert(
             f"pile_loader scripted expert: trigger_sensor must be one of {TRIGGER_SENSORS}, "
             f"got {trigger_sensor!r}"
         )
-    impact_cue = str(options.get("impact_cue", "rise"))
+    impact_cue = str(options.get("impact_cue", DEFAULT_IMPACT_CUE))
     if impact_cue not in IMPACT_CUES:
         raise ValueError(
             f"pile_loader scripted expert: impact_cue must be one of {IMPACT_CUES}, "
@@ -373,7 +380,7 @@ def make_expert(
             mistake_rate=mistake_rate,
             crowd_fill=_flag("crowd_fill", options.get("crowd_fill", False)),
             impact_cue=impact_cue,
-            push_again=_flag("push_again", options.get("push_again", False)),
+            push_again=_flag("push_again", options.get("push_again", DEFAULT_PUSH_AGAIN)),
         )
         noise_seed = int(rng.integers(2**63 - 1))
     return PileLoadingOperator(style, dt=dt, executed_noise=executed_noise, noise_seed=noise_seed)

@@ -48,6 +48,8 @@ PLUGIN = {
     "fill_key": "fill_fraction",
     "options": "pilerl_pile_loader.options:PileLoaderOptions",
     "scripted_expert": "pilerl_pile_loader.operator:make_expert",
+    # 1 since session 33: the stall cue and the second push are the default (0: the rise cue)
+    "expert_revision": 1,
     "renders": True,
     "episode_info": dict(EPISODE_INFO),
     "failure_modes": list(FAILURE_MODES),

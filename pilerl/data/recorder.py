@@ -239,13 +239,15 @@ def record_demonstrations(
 
 
 PLAN_ENTRY = "recording_plan"
+EXPERT_REVISION = "expert_revision"  # the plan's key for the simulator's ``expert_revision``
 
 
 def plan_description(plan: RecordingPlan) -> dict:
-    """What makes two recordings the same plan (everything but the episode count), as
-    JSON values."""
+    """What makes two recordings the same plan (everything but the episode count, and the
+    revision of the simulator's expert behind ``plan.expert``'s defaults), as JSON values."""
     description = dataclasses.asdict(plan)
     del description["n_episodes"]
+    description[EXPERT_REVISION] = get_simulator(plan.simulator).expert_revision
     return json.loads(json.dumps(description, default=repr))
 
 
@@ -266,13 +268,20 @@ def claim_plan(store: EpisodeStore, plan: RecordingPlan) -> None:
                 f"{store.root}: episodes {foreign[:5]} were not recorded by this plan "
                 f"({wanted}); record into another out_dir"
             )
-    recorded = store.claim_index_entry(PLAN_ENTRY, wanted)
+    # a plan recorded before experts had revisions was recorded by revision 0
+    recorded = {EXPERT_REVISION: 0, **store.claim_index_entry(PLAN_ENTRY, wanted)}
     if recorded != wanted:
         changed = sorted(k for k in {*wanted, *recorded} if wanted.get(k) != recorded.get(k))
         then = {k: recorded.get(k) for k in changed}
         now = {k: wanted.get(k) for k in changed}
+        why = (
+            " (the simulator's scripted expert has changed its default behaviour since: "
+            "its expert_revision, docs/simulator_plugins.md)"
+            if EXPERT_REVISION in changed
+            else ""
+        )
         raise SchemaError(
-            f"{store.root}: was recorded with another plan ({then}, not {now}); "
+            f"{store.root}: was recorded with another plan ({then}, not {now}){why}; "
             "record into another out_dir"
         )
 

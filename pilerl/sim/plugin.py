@@ -85,6 +85,10 @@ class SimulatorPlugin:
         scripted_expert: ``module:function`` building the scripted expert,
             ``make_expert(*, dt, rng=None, **options)`` (see docs/simulator_plugins.md);
             ``None``: no expert (nothing to record demonstrations with).
+        expert_revision: the scripted expert's default behaviour, numbered: raise it when
+            that behaviour changes (the pile loader's 1: the stall cue and the second push
+            of session 33), and a demonstration store recorded by the earlier expert is not
+            resumed by the new one (``pilerl.data.recorder.claim_plan``); default 0.
         renders: the env takes ``render_mode="rgb_array"``, ``render_size`` and ``camera``
             (videos); ``False``: recipes make no videos of it.
         episode_info: ``info`` key -> unit of the entries an evaluation records from every
@@ -122,6 +126,7 @@ class SimulatorPlugin:
     success_key: str = "success"
     fill_key: str | None = None
     scripted_expert: str | None = None
+    expert_revision: int = 0
     renders: bool = False
     episode_info: Mapping[str, str] = field(default_factory=dict)
     failure_modes: tuple[str, ...] = (FAILED,)
@@ -165,6 +170,12 @@ class SimulatorPlugin:
             groups[str(group)] = members
         object.__setattr__(self, "condition_groups", groups)
         object.__setattr__(self, "reward_parts", _names(self.reward_parts, f"{where}.reward_parts"))
+        if isinstance(self.expert_revision, bool) or not (
+            isinstance(self.expert_revision, int) and self.expert_revision >= 0
+        ):
+            raise ValueError(
+                f"{where}.expert_revision: expected an integer >= 0, got {self.expert_revision!r}"
+            )
         self._check_evaluation_words(where)
 
     def _check_evaluation_words(self, where: str) -> None:

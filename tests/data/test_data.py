@@ -23,8 +23,8 @@ from pilerl.data import (
     make_replay_buffer,
     record_demonstrations,
 )
-from pilerl.data.recorder import claim_plan
-from pilerl.sim import make_gym_env
+from pilerl.data.recorder import claim_plan, plan_description
+from pilerl.sim import get_simulator, make_gym_env
 
 SENSORS = {"boom_angle": "rad", "drive_pressure": "MPa"}
 CONTROLS = ["boom", "bucket", "throttle"]
@@ -289,6 +289,25 @@ def test_resuming_a_recording_with_another_plan_is_refused(tmp_path):
         with pytest.raises(SchemaError, match="was recorded with another plan"):
             claim_plan(EpisodeStore.open(tmp_path / "demos"), changed)
     assert EpisodeStore.open(tmp_path / "demos").index_entry("recording_plan")["seed"] == 1
+
+
+def test_a_store_recorded_by_an_earlier_expert_is_not_resumed(tmp_path):
+    """The pile loader's expert changed its default behaviour (expert_revision 1, session
+    33): a store whose plan was written before revisions existed (revision 0) is refused;
+    a simulator whose expert never changed (toy cart, revision 0) still resumes one."""
+    assert get_simulator("pile_loader").expert_revision == 1
+    for simulator, resumes in (("pile_loader", False), ("toy_cart", True)):
+        store = EpisodeStore.create(tmp_path / simulator, sensors=SENSORS, controls=CONTROLS)
+        plan = RecordingPlan(simulator, {"control_hz": 20.0}, n_episodes=3, seed=1)
+        before_revisions = plan_description(plan)
+        del before_revisions["expert_revision"]
+        store.claim_index_entry("recording_plan", before_revisions)
+        if resumes:
+            claim_plan(EpisodeStore.open(tmp_path / simulator), plan)
+        else:
+            refused = "expert_revision': 0}, not {'expert_revision': 1"
+            with pytest.raises(SchemaError, match=refused):
+                claim_plan(EpisodeStore.open(tmp_path / simulator), plan)
 
 
 def test_two_recorders_into_one_dataset_both_finish_without_duplicates(tmp_path):

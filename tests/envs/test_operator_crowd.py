@@ -232,11 +232,12 @@ def test_on_the_mouth_intake_it_fills_a_summer_scoop_the_nominal_expert_does_not
 
 def test_driving_it_feels_the_machine_stop_with_its_wheels_spinning():
     """On ice the drive pressure tops out at what the tyres hold, short of the impact
-    rise: a crowding operator feels the machine stopped (the pressure well up and flat)."""
+    rise: a crowding operator feels the machine stopped (the pressure well up and flat),
+    as the default stall cue does; one who waits for the rise (``impact_cue="rise"``) not."""
     spinning = {**REST, "drive_pressure": REST["drive_pressure"] + 5.0}  # nominal rise: 7
     phases = {}
     for crowd in (False, True):
-        operator = make_expert(dt=DT, crowd_fill=crowd)
+        operator = make_expert(dt=DT, crowd_fill=crowd, impact_cue="rise")
         for _ in range(20):
             operator.act(REST)
         for _ in range(12):  # 0.6 s against the pile

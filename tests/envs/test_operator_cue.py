@@ -1,6 +1,7 @@
-"""The stall impact cue (``OperatorStyle.impact_cue="stall"``, off by default: "drive in
-until the machine stops pushing forward, then lift") and pushing again once the boom is
-free (``OperatorStyle.push_again``, off by default); both felt on the sensors only."""
+"""The stall impact cue (``OperatorStyle.impact_cue="stall"``, the default since session 33:
+"drive in until the machine stops pushing forward, then lift") against the earlier rise cue,
+and pushing again once the boom is free (``OperatorStyle.push_again``, on by default); both
+felt on the sensors only."""
 
 from __future__ import annotations
 
@@ -35,9 +36,9 @@ def decisions_until_filling(operator, drive_mpa: tuple[float, ...]) -> int | Non
     return None
 
 
-def test_the_rise_cue_is_the_default_and_a_cue_must_be_known():
-    style = make_expert(dt=DT).style
-    assert style.impact_cue == "rise" and style.push_again is False
+def test_the_stall_cue_and_pushing_again_are_the_default_and_a_cue_must_be_known():
+    for style in (make_expert(dt=DT).style, OperatorStyle()):
+        assert style.impact_cue == "stall" and style.push_again is True
     assert IMPACT_CUES == ("rise", "stall")
     with pytest.raises(ValueError, match="OperatorStyle.impact_cue: must be one of"):
         OperatorStyle(impact_cue="bump")
@@ -45,17 +46,18 @@ def test_the_rise_cue_is_the_default_and_a_cue_must_be_known():
         make_expert(dt=DT, push_again="yes")
     # drawn operators: the same draws, with the cue and the second push as asked
     plain = sample_style(np.random.default_rng([0, 5]))
+    assert (plain.impact_cue, plain.push_again) == ("stall", True)
     drawn = make_expert(
-        dt=DT, rng=np.random.default_rng([0, 5]), impact_cue="stall", push_again="true"
+        dt=DT, rng=np.random.default_rng([0, 5]), impact_cue="rise", push_again="false"
     )
-    assert drawn.style == dataclasses.replace(plain, impact_cue="stall", push_again=True)
+    assert drawn.style == dataclasses.replace(plain, impact_cue="rise", push_again=False)
     for rng in (None, np.random.default_rng(0)):
         with pytest.raises(ValueError, match="scripted expert: impact_cue must be one of"):
             make_expert(dt=DT, rng=rng, impact_cue="bump")
 
 
 def test_the_stall_cue_is_not_a_granular_faces_impact_burst_but_the_push_at_its_relief():
-    assert decisions_until_filling(driving(), IMPACT_BURST) == 3  # the rise cue takes it
+    assert decisions_until_filling(driving(impact_cue="rise"), IMPACT_BURST) == 3
     stall = driving(impact_cue="stall")
     assert decisions_until_filling(stall, IMPACT_BURST) is None  # still driving in
     # the machine stops pushing forward: p_d at the relief, believed after impact_hold_s
@@ -66,7 +68,7 @@ def test_on_ice_the_stall_cue_feels_the_wheels_spin_where_the_rise_cue_does_not(
     """p_d tops out flat at what the tyres hold (12.5 MPa on winter_c), short of the
     relief and, once the felt level has crept up, of the impact rise."""
     spinning = (REST["drive_pressure"] + 5.0,) * 12  # nominal rise 7 MPa: 0.6 s at +5
-    assert decisions_until_filling(driving(), spinning) is None
+    assert decisions_until_filling(driving(impact_cue="rise"), spinning) is None
     count = decisions_until_filling(driving(impact_cue="stall"), spinning)
     assert count == 7  # flat over 0.3 s: seven 20 Hz readings
 
@@ -78,7 +80,7 @@ def test_on_ice_it_feels_the_stop_after_a_long_shaky_push_into_grains():
     shaky = (8.6, 6.9, 10.0, 6.9, 8.3, 8.9, 15.6, 8.0, 7.8, 8.8, 10.4, 11.6, 10.0, 10.2, 10.5)
     shaky = tuple(p for p in shaky for _ in range(2))  # 1.5 s at 20 Hz
     stopped = (11.2, 11.7, 11.5, 11.5, 11.5, 11.4, 11.3, 11.4, 11.5, 11.5)
-    assert decisions_until_filling(driving(), shaky + stopped) is None
+    assert decisions_until_filling(driving(impact_cue="rise"), shaky + stopped) is None
     stall = driving(impact_cue="stall")
     assert decisions_until_filling(stall, shaky) is None
     assert decisions_until_filling(stall, stopped) == 7
@@ -111,7 +113,8 @@ def test_with_a_telescope_trigger_the_stall_needs_the_rise_held_and_the_machine_
     pushed_back = REST["telescope_pressure"] + 1.0
     rolling, stopped = REST["drive_pressure"], REST["drive_pressure"] + 5.0
     options = {"trigger_sensor": "telescope_pressure"}
-    assert until_filling(driving(**options), [(pushed_back, rolling)] * 20) == 3  # rise cue
+    rise = {**options, "impact_cue": "rise"}
+    assert until_filling(driving(**rise), [(pushed_back, rolling)] * 20) == 3
     stall = {**options, "impact_cue": "stall"}
     assert until_filling(driving(**stall), [(pushed_back, rolling)] * 20) is None
     free = REST["telescope_pressure"]
@@ -135,8 +138,8 @@ FREE["bucket_angle"] = REST["bucket_angle"] + 0.25
 
 
 def curled_with_both_held(push_again: bool):
-    """An operator whose first curl ended with the boom and the bucket both at their
-    reliefs: it has stopped crowding."""
+    """An operator (the stall cue) whose first curl ended with the boom and the bucket both
+    at their reliefs: it has stopped crowding."""
     operator = driving(push_again=push_again)
     while operator.phase == "approach":
         command = operator.act(HELD)
@@ -164,7 +167,7 @@ def throttles_while_lifting(
 def test_with_push_again_it_crowds_again_once_the_boom_is_free():
     """Once the boom's pressure has stayed below its stall for 0.15 s (four 20 Hz readings,
     both ends) and the boom is still low, one who pushes again crowds the pile; the
-    nominal one lifts out without the throttle."""
+    one who does not (``push_again=False``) lifts out without the throttle."""
     push = OperatorStyle().push_throttle
     assert throttles_while_lifting(curled_with_both_held(False), 0.0, [FREE] * 10) == [0.0] * 10
     assert throttles_while_lifting(curled_with_both_held(True), 0.0, [FREE] * 10) == (
