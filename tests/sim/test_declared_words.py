@@ -66,6 +66,9 @@ def test_a_minimal_declaration_gets_defaults_that_work():
         ("example_conditions", ["spring"], "example_conditions"),
         ("episode_columns", "not a reference", "episode_columns"),
         ("report_notes", "one line", "report_notes"),
+        ("expert_revision", -1, "expert_revision: expected an integer >= 0"),
+        ("expert_revision", "2", "expert_revision: expected an integer >= 0"),
+        ("expert_revision", True, "expert_revision: expected an integer >= 0"),
     ],
 )
 def test_a_malformed_evaluation_word_fails_naming_the_field(field, value, message):
