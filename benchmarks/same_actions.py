@@ -17,11 +17,14 @@ Tables (``--tables``):
   script as it is, and 4/7): fill per seed; ``d lift`` edge depth when the lift starts;
   ``d relief`` edge depth at the first p_d at relief; ``relief``: share of the physics
   steps from first contact (edge 2 cm deep) to the lift with p_d at relief.
-- ``replay``: the nominal expert on particles and on the mouth heightfield; then each
+- ``replay``: the nominal expert (styled by ``--style``) on particles and on the mouth
+  heightfield; then each
   one's command sequence replayed step for step on the other soils (the last command held
   if the replay outlives it); ``done``: scoops the env counts finished.
-- ``cue``: the nominal expert on particles and the mouth heightfield: the three 20 Hz p_d
-  readings that fired the cue (rise above the felt level held ``impact_hold_s``), edge
+- ``cue``: the nominal expert (styled by ``--style``) on particles and the mouth
+  heightfield: the three 20 Hz p_d readings that fired its impact cue (the default stall
+  cue since session 33; ``--style impact_cue=rise push_again=false``: the rise above the
+  felt level held ``impact_hold_s``, session 31's tables in docs/soil_models.md), edge
   depth and forward speed at the cue, the 500 Hz runs of p_d at relief between contact
   and cue; then a fixed push at the expert's approach throttle (boom and bucket held) from
   the same starts: the first run of p_d at relief (ms, edge depth), p_d's lowest in the
@@ -232,8 +235,12 @@ def scripts_table(seeds: list[int], pairs: list[tuple[float, float]]) -> None:
         env.close()
 
 
-def replay_table(seeds: list[int]) -> None:
-    print(f"\nthe nominal expert and its commands replayed, summer, seeds {seeds[0]}-{seeds[-1]}")
+def replay_table(seeds: list[int], style: dict) -> None:
+    described = " ".join(f"{k}={v}" for k, v in style.items()) or "default"
+    print(
+        f"\nthe nominal expert ({described}) and its commands replayed, summer, seeds "
+        f"{seeds[0]}-{seeds[-1]}"
+    )
     header = f"{'commands of':>19} {'run on':>9} {'fill':>5} {'vol':>5} {'done':>5}  fills"
     print(header)
     print("-" * len(header))
@@ -241,7 +248,7 @@ def replay_table(seeds: list[int]) -> None:
     sources = {}
     for source in ("particles", "mouth"):
         env = envs[source]
-        sources[source] = [episode(env, s, ExpertPolicy(env.unwrapped.dt)) for s in seeds]
+        sources[source] = [episode(env, s, ExpertPolicy(env.unwrapped.dt, **style)) for s in seeds]
     plan = [
         ("particles", "particles"),
         ("mouth", "mouth"),
@@ -269,10 +276,12 @@ def replay_table(seeds: list[int]) -> None:
         env.close()
 
 
-def cue_table(seeds: list[int]) -> None:
-    throttle = OperatorStyle().approach_throttle
+def cue_table(seeds: list[int], style: dict) -> None:
+    throttle = OperatorStyle(**style).approach_throttle
+    described = " ".join(f"{k}={v}" for k, v in style.items()) or "default"
     print(
-        f"\nthe nominal expert's impact cue, summer, seeds {seeds[0]}-{seeds[-1]} (relief: "
+        f"\nthe nominal expert's ({described}) impact cue, summer, seeds {seeds[0]}-{seeds[-1]} "
+        "(relief: "
         f"p_d >= {NEAR_RELIEF_MPA:g} MPa at 500 Hz, between contact and cue)"
     )
     header = (
@@ -285,7 +294,7 @@ def cue_table(seeds: list[int]) -> None:
     for soil in ("particles", "mouth"):
         env = make_env(soil)
         for seed in seeds:
-            tr = episode(env, seed, ExpertPolicy(env.unwrapped.dt))
+            tr = episode(env, seed, ExpertPolicy(env.unwrapped.dt, **style))
             cue, c, n = int(np.argmax(tr["phase"] >= 1)), contact_step(tr), tr["per_step"]
             expert_contact_s.setdefault(seed, tr["t"][c])
             relief = tr["p_d_phys"][(c - 1) * n : cue * n] >= NEAR_RELIEF_MPA
@@ -406,7 +415,11 @@ def main() -> None:
         "--soils", nargs="+", default=list(SOILS), choices=list(SOILS), help="expert table"
     )
     parser.add_argument(
-        "--style", nargs="*", type=style_option, default=[], help="expert table: FIELD=VALUE"
+        "--style",
+        nargs="*",
+        type=style_option,
+        default=[],
+        help="the expert of the replay, cue and expert tables: FIELD=VALUE",
     )
     parser.add_argument("--lift", type=float, nargs="+", default=[open_loop.LIFT_FROM_S, 4.0])
     parser.add_argument("--curl", type=float, nargs="+", default=[open_loop.CURL_FROM_S, 7.0])
@@ -417,9 +430,9 @@ def main() -> None:
     if "scripts" in args.tables:
         scripts_table(seeds, list(zip(args.lift, args.curl, strict=True)))
     if "replay" in args.tables:
-        replay_table(seeds)
+        replay_table(seeds, dict(args.style))
     if "cue" in args.tables:
-        cue_table(seeds)
+        cue_table(seeds, dict(args.style))
     if "expert" in args.tables:
         expert_table(seeds, args.soils, args.condition, dict(args.style))
 

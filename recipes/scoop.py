@@ -58,7 +58,11 @@ def main(config: ScoopConfig, run: Run) -> dict[str, float]:
             config.conditions, where="conditions"
         )
     }
-    run.begin()
+    # the scripted expert's behaviour: scoops of an earlier expert are not taken for this one's
+    expert_revision = config.env.plugin().expert_revision
+    run.begin(
+        settings={**run.settings, "expert_revision": expert_revision}, added={"expert_revision": 0}
+    )
 
     # --- one scripted scoop per condition
     for condition, env in envs.items():

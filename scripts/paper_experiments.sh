@@ -18,12 +18,15 @@
 # PYTHON defaults to .venv/bin/python, NICE to 10. EXPERT adds scripted-expert overrides to
 # prep's recordings: EXPERT="+expert.impact_cue=rise +expert.push_again=false" records with
 # the operator before session 33, the one docs/results/paper/ was made with (into a fresh
-# data/demos: a store recorded by another expert is refused). Each step's output goes to
+# data/demos and data/datasets: a store recorded by another expert, and a dataset built from
+# another recording, are refused; EXPERT must not set trigger_sensor, which the winter_c
+# recording sets itself). Each step's output goes to
 # logs/paper_experiments/<step>.out and its start and end to logs/paper_experiments/steps.log.
 set -u
 PYTHON=${PYTHON:-.venv/bin/python}
 NICE=${NICE:-10}
-EXPERT=${EXPERT:-}
+# EXPERT's overrides as words (split on spaces, never glob-expanded)
+read -ra EXPERT_ARGS <<< "${EXPERT:-}"
 LOGS=logs/paper_experiments
 mkdir -p "$LOGS"
 export OMP_NUM_THREADS=1
@@ -53,11 +56,10 @@ exp3_with_pt() {
 
 case ${1:-} in
 prep)
-    # shellcheck disable=SC2086  # EXPERT: zero or more overrides, split on spaces
-    step record_summer recipes/record.py $EXPERT
-    # shellcheck disable=SC2086
+    step record_summer recipes/record.py "${EXPERT_ARGS[@]}"
     step record_winter_c recipes/record.py env.condition=winter_c n_episodes=10 \
-        +expert.trigger_sensor=telescope_pressure out_dir=data/demos/winter_c_validation $EXPERT
+        +expert.trigger_sensor=telescope_pressure out_dir=data/demos/winter_c_validation \
+        "${EXPERT_ARGS[@]}"
     step build_datasets recipes/build_dataset.py --multirun dataset=d_i,d_ii
     ;;
 A)

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
+import json
 import math
 import os
 import shutil
@@ -88,6 +90,9 @@ def build_dataset(
     rule = {
         "source": str(Path(source.root).resolve()),
         "source_episodes": len(source),
+        # what the episodes are (operator styles, seeds, fills...): a dataset built from
+        # an earlier recording at the same path is not taken for this one's
+        "source_sha256": episodes_digest(source),
         "successful_only": bool(successful_only),
         "rate_hz": rate_hz,
         "filtered": keep is not None,
@@ -125,6 +130,14 @@ def build_dataset(
 
 
 BUILD_PREFIX = ".building-"
+
+
+def episodes_digest(store: EpisodeStore) -> str:
+    """SHA-256 of ``store``'s episode list (every episode's metadata: source, condition,
+    operator and its style, seed, start, fill, success, rate, length), in id order."""
+    episodes = [meta.to_json() for meta in sorted(store.episodes, key=lambda m: m.id)]
+    text = json.dumps(episodes, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _downsampling_factor(source: EpisodeStore, meta: EpisodeMeta, rate_hz: float | None) -> int:

@@ -266,7 +266,7 @@ def claim_plan(store: EpisodeStore, plan: RecordingPlan) -> None:
         if foreign:
             raise SchemaError(
                 f"{store.root}: episodes {foreign[:5]} were not recorded by this plan "
-                f"({wanted}); record into another out_dir"
+                f"({wanted}); record into another directory"
             )
     # a plan recorded before experts had revisions was recorded by revision 0
     recorded = {EXPERT_REVISION: 0, **store.claim_index_entry(PLAN_ENTRY, wanted)}
@@ -282,7 +282,7 @@ def claim_plan(store: EpisodeStore, plan: RecordingPlan) -> None:
         )
         raise SchemaError(
             f"{store.root}: was recorded with another plan ({then}, not {now}){why}; "
-            "record into another out_dir"
+            "record into another directory"
         )
 
 

@@ -305,7 +305,10 @@ def test_a_store_recorded_by_an_earlier_expert_is_not_resumed(tmp_path):
         if resumes:
             claim_plan(EpisodeStore.open(tmp_path / simulator), plan)
         else:
-            refused = "expert_revision': 0}, not {'expert_revision': 1"
+            refused = (
+                r"expert_revision': 0}, not {'expert_revision': 1}\) "
+                r"\(the simulator's scripted expert has changed its default behaviour"
+            )
             with pytest.raises(SchemaError, match=refused):
                 claim_plan(EpisodeStore.open(tmp_path / simulator), plan)
 

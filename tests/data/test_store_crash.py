@@ -388,6 +388,21 @@ def test_build_dataset_is_resumable_and_refuses_another_rule(tmp_path):
         build_dataset(source, out, successful_only=False, rate_hz=None, progress=False)
 
 
+def test_a_dataset_built_from_an_earlier_recording_at_the_same_path_is_not_reused(tmp_path):
+    """Re-recorded demonstrations (another expert, say) in a fresh store at the old
+    store's path: the dataset built from the old one is refused, not handed back."""
+    source = new_store(tmp_path / "source", n_episodes=4)
+    out = tmp_path / "d_i"
+    build_dataset(source, out, successful_only=False, rate_hz=None, progress=False)
+    shutil.rmtree(tmp_path / "source")
+    rerecorded = EpisodeStore.create(tmp_path / "source", sensors=SENSORS, controls=CONTROLS)
+    for seed in range(4):  # the same seeds, lengths and successes, by another operator
+        meta = EpisodeMeta(rate_hz=20.0, seed=seed, success=seed % 2 == 0, operator={"id": 1})
+        rerecorded.append(episode(12, seed), meta)
+    with pytest.raises(FileExistsError, match="a dataset already exists here"):
+        build_dataset(rerecorded, out, successful_only=False, rate_hz=None, progress=False)
+
+
 def _edit_meta(folder: Path, key: str, value=None, **changes) -> None:
     meta = json.loads((folder / "meta.json").read_text())
     if value is not None:

@@ -50,6 +50,30 @@ def test_scoop_recipe_writes_video_plot_trace_and_report(tmp_path):
     assert "drive_pressure" in header and "u_throttle" in header
 
 
+def test_a_scripted_run_of_an_earlier_expert_is_not_taken_for_this_ones(tmp_path):
+    """A scripted evaluation (and a scoop) finished before the simulator's expert changed
+    (its run.json without ``expert_revision``: revision 0) is refused, not skipped as done;
+    the same run of the current expert is skipped."""
+    runs = {
+        "evaluate.py": ["evaluation.conditions=[summer]", "evaluation.episodes=1",
+                        "evaluation.videos=false"],
+        "scoop.py": ["conditions=[summer]", "video=false"],
+    }  # fmt: skip
+    for script, overrides in runs.items():
+        where = tmp_path / script
+        args = (f"hydra.run.dir={where}", *overrides, "env.start_distance_range_m=[1.0,1.0]")
+        first = run_recipe(script, *args)
+        assert first.returncode == 0, first.stderr[-2000:]
+        again = run_recipe(script, *args)
+        assert again.returncode == 0 and "already finished" in again.stdout, script
+        record = json.loads((where / "run.json").read_text())
+        assert record["settings"].pop("expert_revision") == 1
+        (where / "run.json").write_text(json.dumps(record))
+        earlier = run_recipe(script, *args)
+        assert earlier.returncode != 0, script
+        assert "expert_revision: 0 -> 1" in earlier.stderr, earlier.stderr[-2000:]
+
+
 def test_scoop_recipe_rejects_an_unknown_condition_before_writing_results(tmp_path):
     result = run_recipe(
         "scoop.py", f"hydra.run.dir={tmp_path}", "conditions=[summer,spring]", "video=false"
