@@ -21,28 +21,33 @@ fill 0.29 (0.22, 0.37, 0.28, 0.28), so the first test is an expected failure unt
 traced (docs/soil_models.md, "The drive pressure's chatter on ice"). Session 31 traced it
 to the expert's impact cue; session 32's stall cue with pushing again (off by default)
 fills the two soils alike, which the second test checks (docs/soil_models.md, "A stall cue
-that reads both soils alike")."""
+that reads both soils alike"), on seeds 0-3 since session 33 (its sleep rule moved seed 0
+alone out of the band, the mean not: docs/soil_models.md, "Speed")."""
 
 from __future__ import annotations
 
 import gymnasium as gym
+import numpy as np
 import pytest
 from pilerl_pile_loader.operator import make_expert
 
 import pilerl  # noqa: F401
 
 SEED = 0
+STALL_SEEDS = (0, 1, 2, 3)  # the stall cue's check: the benchmark's four seeds
 AGREEMENT = 0.15  # issue #15 item 3: within 15 % of each other
 LOOSE = {"material": {"cohesion_pa": 0.0}}
 
 
-def expert_fill(condition: str, soil: str, style: dict | None = None, **env_kwargs) -> float:
+def expert_fill(
+    condition: str, soil: str, style: dict | None = None, seed: int = SEED, **env_kwargs
+) -> float:
     """The nominal expert's final fill on one seeded start (noiseless sensors); ``style``:
     ``OperatorStyle`` fields to set."""
     env = gym.make(
         "pilerl/PileLoading-v0", condition=condition, soil=soil, sensor_noise=0.0, **env_kwargs
     )
-    obs, _ = env.reset(seed=SEED)
+    obs, _ = env.reset(seed=seed)
     expert = make_expert(dt=env.unwrapped.dt, **(style or {}))
     expert.reset()
     while True:
@@ -78,11 +83,21 @@ def test_on_loose_gravel_the_mouth_intake_fills_like_the_particle_pile(summer_fi
 def test_with_the_stall_cue_and_pushing_again_the_mouth_intake_fills_like_the_particles():
     """Session 32 (docs/soil_models.md, "A stall cue that reads both soils alike"): an
     expert that lifts once the machine stops pushing, and crowds again once the boom is
-    free, fills both soils alike (seeds 0-3: 0.428 against 0.476 by mass)."""
+    free, fills both soils alike (seeds 0-3: 0.428 against 0.476 by mass).
+
+    On the four seeds' mean, not on seed 0 alone: session 33's sleep rule (grains kept awake
+    while the machine touches them, docs/soil_models.md "Speed") left the four seeds' mean
+    at 0.414 but moved seed 0 from 0.467 to 0.363 (the seeds scatter 0.36-0.49). ~1 min of
+    CPU."""
     style = {"impact_cue": "stall", "push_again": True}
-    particles = expert_fill("summer", "particles", style)
-    mouth = expert_fill("summer", "heightfield", style, soil_options={"intake": "mouth"})
-    assert abs(particles / mouth - 1.0) <= AGREEMENT  # 0.467 / 0.478 when written
+    particles = np.mean([expert_fill("summer", "particles", style, seed) for seed in STALL_SEEDS])
+    mouth = np.mean(
+        [
+            expert_fill("summer", "heightfield", style, seed, soil_options={"intake": "mouth"})
+            for seed in STALL_SEEDS
+        ]
+    )
+    assert abs(particles / mouth - 1.0) <= AGREEMENT  # 0.414 / 0.476 in session 33
 
 
 def test_the_default_intake_fills_more_than_passes_the_mouth(summer_fills):
