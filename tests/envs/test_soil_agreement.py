@@ -77,7 +77,9 @@ def summer_fills() -> dict[str, float]:
 def test_on_loose_gravel_the_mouth_intake_fills_like_the_particle_pile(summer_fills):
     """The default expert lifts once the machine stops pushing and crowds again once the
     boom is free (docs/soil_models.md, "A stall cue that reads both soils alike"): 0.414
-    against 0.476 in session 33."""
+    against 0.476 in session 33, a ratio of 0.870 against the bound 0.85 (the issue's 15 %):
+    near the edge, so a change that lowers the particle mean by 0.01 fails here, and should
+    be judged on more seeds before the bound is questioned."""
     assert abs(summer_fills["particles"] / summer_fills["mouth"] - 1.0) <= AGREEMENT
 
 

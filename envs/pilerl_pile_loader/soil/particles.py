@@ -151,15 +151,17 @@ machine touches is one island, so while the machine digs every grain is awake. S
 islands still fall asleep, a grain or two at a time, and are woken again soon after. Each
 time any tree falls asleep, ``mj_step`` recomputes the whole step (``mj_forwardSkip`` in
 its ``mj_advance``: the constraint solve again), and with the bucket in the default pile
-that happened on about a third of the physics steps (summer, nominal expert, seed 0; 1-2
-grains at a time): nearly 30 % of a digging step's time. So while the machine touches a
+that happened on about a third of the physics steps (summer, the `rise` operator that was
+the nominal expert until session 33, seed 0; 1-2 grains at a time): nearly 30 % of a digging
+step's time. So while the machine touches a
 grain (any contact between a grain and a machine geom at the last ``update``), the grains'
 sleep policy is ``mjSLEEP_NEVER``; once it touches none, their compiled policy is back and
 the pile can settle asleep (``reset`` restores it too). Kept awake, those few grains move
 as they would with sleeping off (the same trajectory, bit for bit, as disabling sleep with
-the bucket in the pile); the fill is unchanged within the seeds' spread, and summer scoops
-run 1.4x faster (the bonded winter_c pile: no faster; docs/soil_models.md, "Speed",
-session 33). Option ``sleep_in_contact=True`` lets them sleep as before.
+the bucket in the pile); the fill is unchanged within the seeds' spread, and that
+operator's summer scoops run 1.4x faster (0.44x to 0.62x real time, CPU time; today's
+stall expert digs longer, 0.44x with the rule, not measured without it; the bonded
+winter_c pile: no faster; docs/soil_models.md, "Speed", session 33). Option ``sleep_in_contact=True`` lets them sleep as before.
 
 **Tallies** (every ``update``; particle counts times the particle mass):
 
