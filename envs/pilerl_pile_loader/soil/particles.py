@@ -161,7 +161,8 @@ as they would with sleeping off (the same trajectory, bit for bit, as disabling 
 the bucket in the pile); the fill is unchanged within the seeds' spread, and that
 operator's summer scoops run 1.4x faster (0.44x to 0.62x real time, CPU time; today's
 stall expert digs longer, 0.44x with the rule, not measured without it; the bonded
-winter_c pile: no faster; docs/soil_models.md, "Speed", session 33). Option ``sleep_in_contact=True`` lets them sleep as before.
+winter_c pile: no faster; docs/soil_models.md, "Speed", session 33). Option
+``sleep_in_contact=True`` lets them sleep as before.
 
 **Tallies** (every ``update``; particle counts times the particle mass):
 
