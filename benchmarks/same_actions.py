@@ -236,9 +236,8 @@ def scripts_table(seeds: list[int], pairs: list[tuple[float, float]]) -> None:
 
 
 def replay_table(seeds: list[int], style: dict) -> None:
-    described = " ".join(f"{k}={v}" for k, v in style.items()) or "default"
     print(
-        f"\nthe nominal expert ({described}) and its commands replayed, summer, seeds "
+        f"\nthe nominal expert ({described(style)}) and its commands replayed, summer, seeds "
         f"{seeds[0]}-{seeds[-1]}"
     )
     header = f"{'commands of':>19} {'run on':>9} {'fill':>5} {'vol':>5} {'done':>5}  fills"
@@ -278,11 +277,10 @@ def replay_table(seeds: list[int], style: dict) -> None:
 
 def cue_table(seeds: list[int], style: dict) -> None:
     throttle = OperatorStyle(**style).approach_throttle
-    described = " ".join(f"{k}={v}" for k, v in style.items()) or "default"
     print(
-        f"\nthe nominal expert's ({described}) impact cue, summer, seeds {seeds[0]}-{seeds[-1]} "
-        "(relief: "
-        f"p_d >= {NEAR_RELIEF_MPA:g} MPa at 500 Hz, between contact and cue)"
+        f"\nthe nominal expert's ({described(style)}) impact cue, summer, seeds "
+        f"{seeds[0]}-{seeds[-1]} (relief: p_d >= {NEAR_RELIEF_MPA:g} MPa at 500 Hz, between "
+        "contact and cue)"
     )
     header = (
         f"{'soil':>9} {'seed':>4} {'cue-contact s':>13} {'p_d readings MPa':>18} "
@@ -345,8 +343,7 @@ def cue_table(seeds: list[int], style: dict) -> None:
 
 
 def expert_table(seeds: list[int], soils: list[str], condition: str, style: dict) -> None:
-    described = " ".join(f"{k}={v}" for k, v in style.items()) or "nominal"
-    print(f"\nthe expert ({described}), {condition}, seeds {seeds[0]}-{seeds[-1]}")
+    print(f"\nthe expert ({described(style)}), {condition}, seeds {seeds[0]}-{seeds[-1]}")
     header = (
         f"{'soil':>9} {'seed':>4} {'fill':>5} {'vol':>5} {'done':>4} {'cue-contact s':>13} "
         f"{'d cue':>5} {'p_d cue':>7} {'pushes':>6} {'sim s':>5} {'wall s':>6} {'rtf':>5}"
@@ -388,6 +385,12 @@ def expert_table(seeds: list[int], soils: list[str], condition: str, style: dict
             flush=True,
         )
         env.close()
+
+
+def described(style: dict) -> str:
+    """``style`` (``OperatorStyle`` fields set) as ``FIELD=VALUE`` words; the default's
+    name when empty."""
+    return " ".join(f"{k}={v}" for k, v in style.items()) or "default"
 
 
 def style_option(text: str) -> tuple[str, object]:

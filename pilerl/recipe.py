@@ -48,6 +48,8 @@ from pilerl.runtime import limit_threads
 log = logging.getLogger(__name__)
 
 Metrics = Mapping[str, float | int | bool]
+# the run setting that records the simulator's ``expert_revision`` (``Run.begin``)
+EXPERT_REVISION = "expert_revision"
 Objective = Callable[[Metrics], float]
 
 
@@ -81,17 +83,25 @@ class Run:
         inputs: Mapping[str, str | Path | None] | None = None,
         growable: Iterable[str] = (),
         added: Mapping[str, Any] | None = None,
+        scripted_expert_revision: int | None = None,
         **facts: Any,
     ) -> None:
         """Record this run in ``run_dir`` (default ``dir``), or stop when it finished there.
 
         Args: as ``pilerl.runs.begin_run``; ``settings`` replaces the resolved config
         (e.g. without the keys that name the directory itself).
+        ``scripted_expert_revision``: the simulator's ``expert_revision`` where the run's
+        work is its scripted expert's (a scripted evaluation, scoops): recorded with the
+        settings, so that a run of an earlier expert is refused instead of skipped as done
+        (a run recorded before revisions existed counts as revision 0).
 
         Raises ``RunFinished`` (the decorator skips the recipe) or ``RunMismatch``.
         """
         where = Path(run_dir) if run_dir is not None else self.dir
         recorded = self.settings if settings is None else settings
+        if scripted_expert_revision is not None:
+            recorded = {**recorded, EXPERT_REVISION: scripted_expert_revision}
+            added = {EXPERT_REVISION: 0, **(added or {})}
         if begin_run(where, recorded, inputs=inputs, growable=growable, added=added, **facts):
             raise RunFinished(str(where))
         self.began = True

@@ -42,14 +42,8 @@ def main(config: EvaluateConfig, run: Run) -> dict[str, float]:
         name = config.name or checkpoint.resolve().parent.name
         controller = ActorController(str(checkpoint), name=name)
     plan = closed_loop_plan(config.evaluation, config.env)  # a bad condition fails now
-    # the scripted expert's behaviour: an evaluation of an earlier expert is not taken for
-    # this one's (runs recorded before revisions existed evaluated revision 0)
-    expert = {} if checkpoint else {"expert_revision": config.env.plugin().expert_revision}
-    run.begin(
-        settings={**run.settings, **expert},
-        added={"expert_revision": 0},
-        inputs={"checkpoint": checkpoint},
-    )
+    expert_revision = None if checkpoint else config.env.plugin().expert_revision
+    run.begin(inputs={"checkpoint": checkpoint}, scripted_expert_revision=expert_revision)
 
     # --- episodes, summary, plots, videos
     summary = evaluate_controller(

@@ -58,11 +58,7 @@ def main(config: ScoopConfig, run: Run) -> dict[str, float]:
             config.conditions, where="conditions"
         )
     }
-    # the scripted expert's behaviour: scoops of an earlier expert are not taken for this one's
-    expert_revision = config.env.plugin().expert_revision
-    run.begin(
-        settings={**run.settings, "expert_revision": expert_revision}, added={"expert_revision": 0}
-    )
+    run.begin(scripted_expert_revision=config.env.plugin().expert_revision)
 
     # --- one scripted scoop per condition
     for condition, env in envs.items():

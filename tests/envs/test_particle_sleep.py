@@ -45,7 +45,7 @@ def drive_in(env: gym.Env) -> tuple[int, int]:
             chunks["touched"] += 1
             chunks["slept"] += int(((data.tree_asleep[trees] >= 0) & ~last[0][1]).any())
         update(dt)
-        last[:] = [(_machine_touches_a_grain(soil, data), data.tree_asleep[trees] >= 0)]
+        last[:] = [(soil.machine_touches_a_grain(), data.tree_asleep[trees] >= 0)]
 
     soil.update = watched
     try:
@@ -55,15 +55,6 @@ def drive_in(env: gym.Env) -> tuple[int, int]:
     finally:
         del soil.update
     return chunks["touched"], chunks["slept"]
-
-
-def _machine_touches_a_grain(soil, data: mujoco.MjData) -> bool:
-    pairs = data.contact.geom[: data.ncon]
-    grain, machine = soil._grain_geom, soil._machine_geom
-    return bool(
-        (grain[pairs[:, 0]] & machine[pairs[:, 1]]).any()
-        or (grain[pairs[:, 1]] & machine[pairs[:, 0]]).any()
-    )
 
 
 @pytest.fixture(scope="module")

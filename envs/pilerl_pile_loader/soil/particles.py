@@ -762,15 +762,17 @@ class ParticleSoil(SoilModel):
     def _update_sleep_policy(self) -> None:
         """Keep the grains from falling asleep while the machine touches one of them, and let
         them sleep again once it touches none (module docstring, "Sleeping")."""
-        if self.sleep_in_contact:
-            return
-        d = self.data
-        pairs = d.contact.geom[: d.ncon]
-        touched = bool(
-            (self._grain_geom[pairs[:, 0]] & self._machine_geom[pairs[:, 1]]).any()
-            or (self._grain_geom[pairs[:, 1]] & self._machine_geom[pairs[:, 0]]).any()
+        if not self.sleep_in_contact:
+            self._set_grains_may_sleep(not self.machine_touches_a_grain())
+
+    def machine_touches_a_grain(self) -> bool:
+        """Whether a contact of the last physics step joins a grain and a machine geom."""
+        pairs = self.data.contact.geom[: self.data.ncon]
+        grain, machine = self._grain_geom, self._machine_geom
+        return bool(
+            (grain[pairs[:, 0]] & machine[pairs[:, 1]]).any()
+            or (grain[pairs[:, 1]] & machine[pairs[:, 0]]).any()
         )
-        self._set_grains_may_sleep(not touched)
 
     def _set_grains_may_sleep(self, may_sleep: bool) -> None:
         if may_sleep != self._grains_may_sleep:
