@@ -38,6 +38,7 @@ from .comparisons import compare, seed_spread_text, threshold
 from .document import Report
 from .paper_numbers import Claim, Key
 from .results import Cell, closed_loop_cells, offline_validation_curves, unfinished_ensemble_jobs
+from .stats import welch_less_p
 
 SENSOR_LABELS = {"s": "θ1, θ2, p_d", "s_pt": "+ p_t", "s_pt_sprime": "+ p_t, s′"}
 CONTROLLER_LABELS = {
@@ -363,9 +364,9 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
         legend_outside(ax)
     save_figure(fig, out_dir / "exp4_validation_loss.png")
     rows = []
-    final = {}
+    final = {}  # (controller, sensors, dataset) -> (mean, sample std over seeds, seeds)
     for c in curves:
-        final[(c.controller, c.sensors, c.dataset)] = c.validation_mean[-1]
+        final[(c.controller, c.sensors, c.dataset)] = final_validation_loss(c)
         rows.append(
             [
                 controller_text(c.controller),
@@ -388,16 +389,25 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
         ["controller", "inputs", "data", "seeds", "epochs", "final loss", "lowest mean"], rows
     )
     report.image("exp4_validation_loss.png", "Validation loss, mean ± std over seeds")
+    report.paragraph(
+        "A loss claim holds for a pair when the group the paper calls lower (D_I; the "
+        "attention network) has the lower final validation loss by Welch's one-sided "
+        f"t-test over the seeds, p < {LOSS_CLAIM_ALPHA}."
+    )
     claims = []
     pairs = [
         (k, (k[0], k[1], "d_i")) for k in final if k[2] == "d_ii" and (k[0], k[1], "d_i") in final
     ]
     if pairs:
+        tests = [lower_loss(final[b], final[a]) for a, b in pairs]
         claims.append(
             [
                 paper_numbers.MORE_DATA_LOSS_CLAIM,
-                verdict([final[b] < final[a] for a, b in pairs]),
-                "; ".join(f"{a[0]}: D_II {final[a]:.4f}, D_I {final[b]:.4f}" for a, b in pairs),
+                verdict([ok for ok, _ in tests]),
+                "; ".join(
+                    f"{a[0]}: D_I {loss_text(final[b])} vs D_II {loss_text(final[a])}, {p}"
+                    for (a, b), (_, p) in zip(pairs, tests, strict=True)
+                ),
             ]
         )
     attention = [
@@ -406,17 +416,44 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
         if k[0] in ("annet", "dannet") and ("nnetv2", k[1], k[2]) in final
     ]
     if attention:
+        tests = [lower_loss(final[a], final[b]) for a, b in attention]
         claims.append(
             [
                 paper_numbers.ATTENTION_LOSS_CLAIM,
-                verdict([final[a] < final[b] for a, b in attention]),
+                verdict([ok for ok, _ in tests]),
                 "; ".join(
-                    f"{a[0]} {a[2]} {final[a]:.4f} vs NNetV2 {final[b]:.4f}" for a, b in attention
+                    f"{a[0]} {a[2]} {loss_text(final[a])} vs NNetV2 {loss_text(final[b])}, {p}"
+                    for (a, b), (_, p) in zip(attention, tests, strict=True)
                 ),
             ]
         )
     if claims:
         report.table(["claim", "in simulation", "evidence"], claims)
+
+
+LOSS_CLAIM_ALPHA = 0.05  # a loss claim holds for a pair when Welch's p is below this
+
+
+def final_validation_loss(curves) -> tuple[float, float, int]:
+    """An ensemble's last-epoch validation loss: mean, sample std over its seeds (the
+    curves record numpy's population std, ddof = 0) and the number of seeds."""
+    n = int(curves.seeds)
+    spread = float(curves.validation_std[-1])
+    sample_std = spread * math.sqrt(n / (n - 1)) if n > 1 else math.nan
+    return float(curves.validation_mean[-1]), sample_std, n
+
+
+def lower_loss(a: tuple[float, float, int], b: tuple[float, float, int]) -> tuple[bool, str]:
+    """Whether loss ``a`` is below ``b`` (``final_validation_loss``'s tuples) by Welch's
+    one-sided test over the seeds, and the p-value as text."""
+    if a[2] < 2 or b[2] < 2:
+        return False, "one seed: not tested"
+    p = welch_less_p(a[0], a[1], a[2], b[0], b[1], b[2])
+    return p < LOSS_CLAIM_ALPHA, f"p = {p:.2g}"
+
+
+def loss_text(loss: tuple[float, float, int]) -> str:
+    return f"{loss[0]:.4f} ({loss[2]} seeds)"
 
 
 def add_controller_figures(

@@ -1,7 +1,7 @@
-"""Small exact tests behind the report's verdicts: paired sign-flip, Fisher, Kendall's tau.
+"""Small tests behind the report's verdicts: paired sign-flip, Fisher, Kendall's tau, Welch.
 
-All exact and deterministic (no random permutations), in plain Python: the report needs a
-handful of tests on a few hundred episodes, not a statistics package.
+All deterministic (no random permutations); the first three exact, in plain Python: the
+report needs a handful of tests on a few hundred episodes, not a statistics package.
 
 - ``sign_flip_p``: the paired permutation test. Under "A and B do equally well", each pair's
   difference is as likely to have either sign; the one-sided p-value is the share of the
@@ -10,12 +10,17 @@ handful of tests on a few hundred episodes, not a statistics package.
 - ``fisher_greater_p``: Fisher's exact test of two success counts, one-sided; the fall-back
   when the episodes cannot be paired.
 - ``kendall_tau_b``: rank agreement of two score lists, ties counted as in tau-b.
+- ``welch_less_p``: Welch's t-test that one mean is lower than another, from each group's
+  mean, standard deviation and size: the seed-aware test of Exp. 4's loss claims, whose
+  ensembles record the mean and spread of their seeds' losses, not each seed's.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+
+from scipy.stats import t as student_t
 
 
 def sign_flip_p(differences: Sequence[int]) -> float:
@@ -87,3 +92,26 @@ def kendall_tau_b(x: Sequence[float], y: Sequence[float]) -> float:
     pairs = len(x) * (len(x) - 1) // 2
     denominator = math.sqrt((pairs - ties_x) * (pairs - ties_y))
     return (concordant - discordant) / denominator if denominator else math.nan
+
+
+def welch_less_p(
+    mean_a: float, std_a: float, n_a: int, mean_b: float, std_b: float, n_b: int
+) -> float:
+    """Welch's one-sided p-value that group A's mean is below group B's.
+
+    ``std_a``, ``std_b``: sample standard deviations (ddof = 1); ``n_a``, ``n_b``: group
+    sizes, at least 2 each. The t statistic (mean_a - mean_b) / sqrt(s_a^2/n_a + s_b^2/n_b)
+    against Student's t with the Welch-Satterthwaite degrees of freedom. Two groups without
+    any spread: p = 0 if A is lower, else 1.
+    """
+    for name, n, std in (("a", n_a, std_a), ("b", n_b, std_b)):
+        if n < 2:
+            raise ValueError(f"welch_less_p: group {name} needs at least 2 values, got {n}")
+        if not (math.isfinite(std) and std >= 0):
+            raise ValueError(f"welch_less_p: group {name}'s standard deviation is {std}")
+    var_a, var_b = std_a**2 / n_a, std_b**2 / n_b
+    if var_a + var_b == 0:
+        return 0.0 if mean_a < mean_b else 1.0
+    t = (mean_a - mean_b) / math.sqrt(var_a + var_b)
+    df = (var_a + var_b) ** 2 / (var_a**2 / (n_a - 1) + var_b**2 / (n_b - 1))
+    return float(student_t.cdf(t, df))

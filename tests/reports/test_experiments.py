@@ -343,4 +343,22 @@ def test_report_of_offline_validation_checks_the_papers_two_claims(tmp_path):
     assert "| NNetV2 | + p_t | D_II | 4 | 2 | 0.0600 ± 0.0020 | 0.0600 |" in text
     assert "| All data D_I gives a lower validation loss than D_II. | holds |" in text
     assert "lower validation loss than NNetV2. | holds |" in text  # DANNet 0.055 < 0.06
+    assert "Welch's one-sided t-test over the seeds, p < 0.05" in text
+    assert "nnetv2: D_I 0.0500 (4 seeds) vs D_II 0.0600 (4 seeds), p = " in text
     assert (tmp_path / "report" / "exp4_validation_loss.png").stat().st_size > 5000
+
+
+def test_a_loss_lead_inside_the_seeds_spread_does_not_hold(tmp_path):
+    """D_I's mean is lower, but by a tenth of the spread over 4 seeds: not shown."""
+    sweep = tmp_path / "exp4"
+    for n, (data, final) in enumerate((("d_ii", 0.0600), ("d_i", 0.0598))):
+        fake_job(sweep, n, "nnetv2", "s_pt", data, {})
+        (sweep / str(n) / "ensemble_curves.csv").write_text(
+            "epoch,train_mean,train_std,validation_mean,validation_std\n"
+            f"1,0.2,0.01,0.1,0.01\n2,0.1,0.01,{final},0.002\n"
+        )
+        (sweep / str(n) / "metrics.json").write_text(json.dumps({"seeds": 4}))
+    markdown, _ = build_report(out_dir=tmp_path / "report", exp4=sweep)
+    text = markdown.read_text()
+    assert "| All data D_I gives a lower validation loss than D_II. | does not hold |" in text
+    assert "D_I 0.0598 (4 seeds) vs D_II 0.0600 (4 seeds), p = 0.45" in text

@@ -14,7 +14,7 @@ from pilerl.reports.comparisons import compare, threshold
 from pilerl.reports.cross_soil import EVERY_CONDITION, controller_of, soil_agreement, soil_cells
 from pilerl.reports.paper import build_report, check_claim
 from pilerl.reports.results import Cell, closed_loop_cells, job_results
-from pilerl.reports.stats import fisher_greater_p, kendall_tau_b, sign_flip_p
+from pilerl.reports.stats import fisher_greater_p, kendall_tau_b, sign_flip_p, welch_less_p
 
 # --- exact tests against hand-computed values ---------------------------------------------
 
@@ -53,6 +53,21 @@ def test_kendall_tau_b_by_hand_and_against_scipy():
     assert kendall_tau_b(x, y) == pytest.approx(scipy_stats.kendalltau(x, y).statistic)
     with pytest.raises(ValueError, match="at least 2"):
         kendall_tau_b([1], [1])
+
+
+def test_welch_by_hand_and_against_scipy():
+    # equal spreads and sizes: t = -0.01 / sqrt(2 * 0.01**2 / 8) = -2, df = 14
+    scipy_stats = pytest.importorskip("scipy.stats")
+    assert welch_less_p(0.05, 0.01, 8, 0.06, 0.01, 8) == pytest.approx(scipy_stats.t.cdf(-2.0, 14))
+    # unequal spreads and sizes: the Welch-Satterthwaite degrees of freedom
+    expected = scipy_stats.ttest_ind_from_stats(
+        0.018, 0.0015, 30, 0.0182, 0.0013, 12, equal_var=False, alternative="less"
+    ).pvalue
+    assert welch_less_p(0.018, 0.0015, 30, 0.0182, 0.0013, 12) == pytest.approx(expected)
+    assert welch_less_p(0.06, 0.01, 8, 0.05, 0.01, 8) > 0.95  # the other way round
+    assert welch_less_p(1.0, 0.0, 3, 2.0, 0.0, 3) == 0.0  # no spread at all
+    with pytest.raises(ValueError, match="group a needs at least 2"):
+        welch_less_p(0.05, 0.01, 1, 0.06, 0.01, 8)
 
 
 # --- seed-aware claims ----------------------------------------------------------------------
