@@ -357,7 +357,7 @@ class PileLoadingEnv(gym.Env):
                 bucket_valve += valve_blend * (bucket - bucket_valve)
                 pump_fraction += pump_blend * (pump - pump_fraction)
             machine.command(boom_valve, bucket_valve, pump_fraction)
-            mujoco.mj_step(m, d, nstep=steps)
+            soil.advance(m, d, steps)
             steps_since_soil += steps
             if steps_since_soil >= soil_period:
                 soil.update(steps_since_soil * timestep)

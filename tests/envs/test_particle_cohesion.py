@@ -72,21 +72,23 @@ def winter_env() -> gym.Env:
 
 
 def _bonds(model: mujoco.MjModel) -> list[int]:
-    return [i for i in range(model.nu) if model.actuator(i).name.endswith("_bond")]
+    return [i for i in range(model.nu) if "_bond_" in model.actuator(i).name]
 
 
 def test_cohesive_grains_each_pull_their_contacts_with_the_bond_force(winter_env):
     soil, model = winter_env.unwrapped.soil, winter_env.unwrapped.model
     bonds = _bonds(model)
-    assert len(bonds) == soil.n_particles
+    assert len(bonds) == 3 * soil.n_particles  # a motor on each of a grain's three slides
     expected = bond_force_n(WINTER_C.cohesion_pa, WINTER_C.friction_angle_deg, 2 * soil.radius_m)
     assert soil.bond_force_n == pytest.approx(expected)
-    np.testing.assert_array_equal(model.actuator_trntype[bonds], int(mujoco.mjtTrn.mjTRN_BODY))
-    np.testing.assert_allclose(model.actuator_biasprm[bonds, 0], expected)  # needs no ctrl
-    np.testing.assert_array_equal(model.actuator_gainprm[bonds, 0], 0.0)
-    # the bonded bodies are the grains, and they are still allowed to sleep
+    assert soil.bonds.bond_n == pytest.approx(expected)
+    np.testing.assert_array_equal(model.actuator_trntype[bonds], int(mujoco.mjtTrn.mjTRN_JOINT))
+    np.testing.assert_array_equal(model.actuator_gainprm[bonds, 0], 1.0)  # ctrl = force [N]
+    np.testing.assert_array_equal(model.actuator_ctrllimited[bonds], 0)
+    # the motors drive the grains' slides, and the grains are still allowed to sleep
     grains = np.arange(model.nbody)[soil._bodies]
-    np.testing.assert_array_equal(model.actuator_trnid[bonds, 0], grains)
+    slides = model.actuator_trnid[bonds, 0].reshape(-1, 3)
+    np.testing.assert_array_equal(model.jnt_bodyid[slides], np.repeat(grains[:, None], 3, 1))
     policy = model.tree_sleep_policy[model.body_treeid[grains]]
     np.testing.assert_array_equal(policy, int(mujoco.mjtSleepPolicy.mjSLEEP_ALLOWED))
     assert winter_env.unwrapped.machine.drive_actuator not in bonds

@@ -59,5 +59,8 @@ def test_winter_c_seed1_drive_in_keeps_its_grains_in_the_pile(drive_in):
     # (summer's too; other winter_c seeds, whole episodes: up to ~21 m/s, none leaving the
     # pile); with the old contacts this drive ended at 7.05 s with grains at 99.5 m/s
     assert drive_in["speed_m_s"] < 15.0
-    # the grains it took stay in the bucket (0.02 left with the old contacts)
-    assert drive_in["fill"] > 0.1
+    # the grains it took stay in the bucket (0.02 left with the old contacts). The fill of
+    # one seed 1.4 s into the pile is chaotic: 0.174 with MuJoCo's adhesion actuators,
+    # 0.094 with the same bonds computed in one pass (session 34; their forces agree to
+    # 2e-14 N from the same state), so the bound is twice the old contacts' leftover
+    assert drive_in["fill"] > 0.05

@@ -3,9 +3,10 @@
 A soil model owns the material: the pile, the load in the bucket and what has spilled.
 The environment asks it to add itself to the MuJoCo model spec before compiling
 (``add_to_spec``), to bind to the compiled model (``bind``), to lay a fresh pile
-(``reset``) and to advance the bucket-material interaction (``update``) a few times per
-control step. Mass is the currency: ``pile_mass_kg + bucket_load_kg + spilled_kg`` is the
-same before and after every call.
+(``reset``), to run the physics steps (``advance``: ``mj_step`` unless the soil has forces
+of its own to set every step) and to advance the bucket-material interaction (``update``)
+a few times per control step. Mass is the currency:
+``pile_mass_kg + bucket_load_kg + spilled_kg`` is the same before and after every call.
 """
 
 from __future__ import annotations
@@ -16,13 +17,12 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
+import mujoco
 import numpy as np
 
 from ..conditions import Material
 
 if TYPE_CHECKING:
-    import mujoco
-
     from ..machine import Machine
 
 
@@ -177,6 +177,11 @@ class SoilModel(ABC):
     @abstractmethod
     def reset(self, rng: np.random.Generator) -> None:
         """Lay a fresh pile (shape noise from ``rng``), empty the bucket, zero the tallies."""
+
+    def advance(self, model: mujoco.MjModel, data: mujoco.MjData, nstep: int) -> None:
+        """Run ``nstep`` physics steps (default ``mj_step``; a soil with forces of its own
+        that depend on each step's contacts steps itself, e.g. the particle pile's bonds)."""
+        mujoco.mj_step(model, data, nstep=nstep)
 
     @abstractmethod
     def update(self, dt: float) -> None:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from .bonds import GrainBonds
 from .particles import (
     ARENA_BYTES_PER_GRAIN,
     CONE,
@@ -43,7 +44,6 @@ from .particles import (
     SOLVER_TOLERANCE,
     WALL_CONTYPE,
     add_grain,
-    bond_arena_bytes,
     bond_force_n,
 )
 
@@ -167,7 +167,7 @@ def build_cut(
     for i, site in enumerate(sites):
         add_grain(spec, f"g{i}", site, r, mass, friction, contact, bond)
     n = len(sites)
-    spec.memory = ARENA_BYTES_PER_GRAIN * n + bond_arena_bytes(n if bond > 0 else 0, n)
+    spec.memory = ARENA_BYTES_PER_GRAIN * n
     return spec.compile(), sites, face_x
 
 
@@ -189,12 +189,22 @@ def run_cut(
         height_m, cohesion_pa, friction_angle_deg, density_kg_m3, diameter_m
     )
     data = mujoco.MjData(model)
-    start = time.process_time()
-    mujoco.mj_step(model, data, nstep=round(SETTLE_S / model.opt.timestep))
     bodies = np.array([model.body(f"g{i}").id for i in range(len(sites))])
+    bond = bond_force_n(cohesion_pa, friction_angle_deg, diameter_m)
+    bonds = GrainBonds(model, bodies, bond) if bond > 0 else None
+
+    def advance(seconds: float) -> None:
+        nstep = round(seconds / model.opt.timestep)
+        if bonds is None:
+            mujoco.mj_step(model, data, nstep=nstep)
+        else:
+            bonds.step(model, data, nstep)
+
+    start = time.process_time()
+    advance(SETTLE_S)
     before = data.xpos[bodies].copy()
     model.geom_contype[model.geom("gate").id] = 0
-    mujoco.mj_step(model, data, nstep=round(watch_s / model.opt.timestep))
+    advance(watch_s)
     after = data.xpos[bodies]
     moved = np.linalg.norm(after - before, axis=1)
     r = diameter_m / 2.0

@@ -27,14 +27,14 @@ spheres in a packing are stronger than their contact friction; with this ratio t
 close-packed face stands at the angle of repose and a collapsing block of them runs out to
 ~33 deg for dry gravel's 38 deg (slump test).
 
-**Cohesion.** Each grain of a cohesive material (c > 0) carries a MuJoCo adhesion force: an
-actuator with a body transmission (``add_grain``, ``{name}_bond``) whose force G is a
-constant bias, so it needs no control. MuJoCo spreads it evenly over the body's n contacts
-and pulls each closed along its normal (the actuator's moment is minus the mean of the
-contact normals' Jacobians; with the pyramidal cone, the mean of a contact's four edges is
-its normal), so a grain-grain contact is held by G/n_a + G/n_b and the bond forces around a
-grain sum to about 2 G whatever its coordination number k (exactly, where the neighbours
-have as many contacts). The bond strength G comes from soil mechanics, not from fills:
+**Cohesion.** Each grain of a cohesive material (c > 0) pulls its contacts closed with a
+constant force G, spread evenly over the body's n contacts along each one's normal: MuJoCo's
+body adhesion (an adhesion actuator with a body transmission, which the pile used until
+session 34), computed once per physics step by ``bonds.GrainBonds`` and applied through
+three motors on the grain's slides. So a grain-grain contact is held by G/n_a + G/n_b and
+the bond forces around a grain sum to about 2 G whatever its coordination number k
+(exactly, where the neighbours have as many contacts). The bond strength G comes from soil
+mechanics, not from fills:
 
 - Rumpf (1958, Chem. Ing. Tech. 30: 144): a packing of spheres of diameter D, porosity
   eps and k bonds of force F per sphere breaks in tension at
@@ -64,15 +64,14 @@ Nothing bonds to the steel or to the ground: cohesion is the soil's strength aga
 itself; soil-tool adhesion is a separate property, which the heightfield's cutting force
 (no adhesion term) leaves out too, and the ground is the site's firm floor, which a bucket
 scrapes clean (bonded to it, a grain under the cutting edge could not get away: pinched
-between the plate and the ground, winter_c seed 1 shot one 2 m high). MuJoCo's body
-adhesion acts on every contact of its body, so a cohesive grain's sphere touches only the
-pile (grains, walls, and the static core, moved to its own bit ``COHESIVE_CORE_CONTYPE``)
-and a copy of it on a welded, massless child body (``{name}_unbonded``) touches only the
-machine and the ground. Cost: MuJoCo computes each body transmission over all contact
-rows, so the bonds cost per step in proportion to awake grains times contacts (a prototype
-of the cut test, 738 awake grains: 10.3 -> 20.6 ms per step; the nominal expert digs
-1.5-1.7 times slower on winter_a and winter_c), and compiling takes ~96 B of arena per
-bond and degree of freedom (``bond_arena_bytes``); bonded grains are allowed to sleep
+between the plate and the ground, winter_c seed 1 shot one 2 m high). The bonds act on
+every contact of the grain's body, so a cohesive grain's sphere touches only the pile
+(grains, walls, and the static core, moved to its own bit ``COHESIVE_CORE_CONTYPE``) and a
+copy of it on a welded, massless child body (``{name}_unbonded``) touches only the machine
+and the ground. Cost: one pass over the contacts per physics step; MuJoCo's adhesion
+actuators cost per awake grain times contacts (a prototype of the cut test, 738 awake
+grains: 10.3 -> 20.6 ms per step; 5.6-6.0 ms of a 15.4 ms winter_c digging step), which is
+why they were replaced (docs/soil_models.md, "Speed"). Bonded grains are allowed to sleep
 (MuJoCo keeps actuated bodies awake by default). Option ``cohesion=False`` keeps the
 grains loose; at c = 0 the model is the loose one, bit for bit.
 
@@ -207,6 +206,7 @@ import mujoco
 import numpy as np
 
 from .base import SoilModel
+from .bonds import GrainBonds, add_bond_motors
 
 if TYPE_CHECKING:
     from ..machine import Machine
@@ -302,10 +302,6 @@ GROUND_CONTYPE = 1
 UNBONDED_CONAFFINITY = MACHINE_CONTYPE | GROUND_CONTYPE
 COHESIVE_CORE_CONAFFINITY = MACHINE_CONTYPE  # the machine still meets the core
 UNBONDED_MASS_KG = 1e-6  # the unbonded copy's welded child body
-# MuJoCo's arena per bond actuator and degree of freedom of the model [B]: compiling the
-# model takes three 3 x nv Jacobians and two nv vectors on the stack per body-transmission
-# actuator (a 320-grain model ran out at ~70 B; stepping needs far less)
-BOND_ARENA_BYTES_PER_DOF = 96
 
 
 class ParticleSoil(SoilModel):
@@ -522,11 +518,7 @@ class ParticleSoil(SoilModel):
             for key, value in bucket_contact.items():
                 setattr(geom, key, value)
 
-        spec.memory = max(
-            spec.memory,
-            ARENA_BYTES_PER_GRAIN * len(sites)
-            + bond_arena_bytes(self.n_particles if self.bond_force_n > 0 else 0, len(sites)),
-        )
+        spec.memory = max(spec.memory, ARENA_BYTES_PER_GRAIN * len(sites))
         option = spec.option
         option.solver = SOLVER
         option.cone = CONE
@@ -731,6 +723,11 @@ class ParticleSoil(SoilModel):
         self._footprint_half_width = self.half_width_m + WALL_THICKNESS_M
         self.zone_offset_y_m = 0.0
         self.initial_mass_kg = self.n_particles * self.particle_mass_kg
+        self.bonds = (
+            GrainBonds(model, np.arange(self.n_particles) * stride + first, self.bond_force_n)
+            if self.bond_force_n > 0
+            else None
+        )
         self._settled_qpos = self._settle()
         self._counts = (self.n_particles, 0, 0)
         self._depth_m: float | None = 0.0
@@ -793,12 +790,12 @@ class ParticleSoil(SoilModel):
         mujoco.mj_forward(m, d)
         sleep = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
         m.opt.enableflags &= ~sleep
-        mujoco.mj_step(m, d, nstep=max(1, round(SETTLE_AWAKE_S / m.opt.timestep)))
+        self.advance(m, d, max(1, round(SETTLE_AWAKE_S / m.opt.timestep)))
         m.opt.enableflags |= sleep
         trees = np.unique(m.body_treeid[self._bodies])
         steps = max(1, round(SETTLE_CHECK_S / m.opt.timestep))
         while d.time < SETTLE_MAX_S and d.tree_awake[trees].any():
-            mujoco.mj_step(m, d, nstep=steps)
+            self.advance(m, d, steps)
         self.settle_time_s = float(d.time)
         settled = d.qpos[self._qpos].copy()
         mujoco.mj_resetData(m, d)
@@ -849,9 +846,16 @@ class ParticleSoil(SoilModel):
         return float(np.clip(y, -limit, limit))
 
     # ------------------------------------------------------------------ update
+    def advance(self, model: mujoco.MjModel, data: mujoco.MjData, nstep: int) -> None:
+        """``nstep`` physics steps; a cohesive pile's bonds set from each step's contacts."""
+        if self.bonds is None:
+            mujoco.mj_step(model, data, nstep=nstep)
+        else:
+            self.bonds.step(model, data, nstep)
+
     def update(self, dt: float) -> None:
         """Recount the particles and set whether they may fall asleep; the physics of the last
-        ``dt`` seconds ran in ``mj_step``."""
+        ``dt`` seconds ran in ``advance``."""
         self._tally()
         self._update_sleep_policy()
 
@@ -1035,13 +1039,6 @@ def bond_force_n(
     return COHESION_CALIBRATION * math.pi * diameter_m**2 * tensile_pa / (2.0 * solid_fraction)
 
 
-def bond_arena_bytes(n_bonds: int, n_grains: int) -> int:
-    """MuJoCo arena [B] that ``n_bonds`` bond actuators need on top of the contacts' in a
-    model of ``n_grains`` spheres on slide joints (plus the machine's few dofs): compiling
-    takes Jacobians over every degree of freedom on the stack, per body transmission."""
-    return n_bonds * BOND_ARENA_BYTES_PER_DOF * (3 * n_grains + 64)
-
-
 def add_grain(
     spec: mujoco.MjSpec,
     name: str,
@@ -1056,12 +1053,13 @@ def add_grain(
 
     Loose (``bond_n`` 0): one geom that touches other grains, the core, the walls, the
     ground and the machine. Cohesive (``bond_n`` > 0 [N], ``bond_force_n``): the grain's
-    geom touches only the pile (grains, the core with ``COHESIVE_CORE_CONTYPE``, walls), an
-    adhesion actuator (``{name}_bond``, body transmission, a constant force ``bond_n`` that
-    needs no control) pulls the body's contacts closed, and a copy of the sphere on a
-    child body (``{name}_unbonded``, welded to it) touches only the machine and the
-    ground, so that MuJoCo's body adhesion, which acts on every contact of its body,
-    leaves the steel and the site's floor alone."""
+    geom touches only the pile (grains, the core with ``COHESIVE_CORE_CONTYPE``, walls), its
+    bonds (``bonds.GrainBonds``, a force ``bond_n`` spread over the body's contacts) pull
+    them closed, and a copy of the sphere on a child body (``{name}_unbonded``, welded to
+    it) touches only the machine and the ground, so that the bonds, which act on every
+    contact of the grain's body, leave the steel and the site's floor alone. The grain gets
+    three motors on its slides (``bonds.add_bond_motors``) through which ``GrainBonds``
+    applies the bonds' pull."""
     body = spec.worldbody.add_body(name=name, pos=list(map(float, position)))
     if bond_n > 0.0:  # MuJoCo keeps actuated bodies awake unless they are allowed to sleep
         body.sleep = mujoco.mjtSleepPolicy.mjSLEEP_ALLOWED
@@ -1095,11 +1093,7 @@ def add_grain(
         group=WALL_GROUP,
         **geom,
     )
-    bond = spec.add_actuator(name=f"{name}_bond", target=name)
-    bond.trntype = mujoco.mjtTrn.mjTRN_BODY
-    bond.gainprm[0] = 0.0
-    bond.biastype = mujoco.mjtBias.mjBIAS_AFFINE
-    bond.biasprm[0] = bond_n  # force = bias: always on, whatever the control
+    add_bond_motors(spec, body, name)  # GrainBonds sets their force every physics step
     return body
 
 
