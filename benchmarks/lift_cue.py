@@ -11,7 +11,7 @@ make it lift there, p_t included. Three parts:
    telescope pressures there, and of their maxima before it (the readings the operator
    pushed through without lifting).
 2. **Pushes**, per condition and throttle (``--conditions``, ``--throttles``): drive at
-   the pile from ``--starts`` seeded starts, boom and bucket held, ``SECONDS`` each at
+   the pile from ``--starts`` seeded starts, boom and bucket held, ``PUSH_S`` each at
    20 Hz with the default sensor noise; in contact (cutting depth > 5 cm) the 90th
    percentile of p_d and of p_t (the steady push, capped by the tyres' grip on ice) and p_t's
    peak in the first second of contact (the impact, which the machine's momentum drives,
@@ -45,7 +45,7 @@ CONDITIONS = ("summer", "winter_a", "winter_b", "winter_c", "winter_d")
 SETTLE_S = 0.5  # the first lift is looked for after this [s] (the valves settle at reset)
 LIFT_COMMAND = 0.1  # a boom command above this is a lift
 POSTURE_WINDOW_S = 1.0  # the approach posture: the median angles over this before the onset [s]
-SECONDS = 10.0  # each push [s]
+PUSH_S = 10.0  # each push [s]
 CONTACT_DEPTH_M = 0.05  # in contact: the cutting edge this deep (benchmarks/sensor_separability.py)
 IMPACT_WINDOW_S = 1.0  # the impact: p_t's peak within this of first contact [s]
 GRID_DRIVE_MPA = (4.0, 8.0, 10.0, 12.0, 14.0, 17.0, 20.0, 25.0)
@@ -97,7 +97,7 @@ def push(condition: str, throttle: float, starts: int) -> dict[str, float]:
         _, info = env.reset(seed=seed)
         contact_s = None
         impact = np.nan
-        while info["elapsed_s"] < SECONDS - 1e-9:
+        while info["elapsed_s"] < PUSH_S - 1e-9:
             obs, _, terminated, truncated, info = env.step(
                 np.array([0.0, 0.0, throttle], dtype=np.float32)
             )
@@ -116,7 +116,7 @@ def push(condition: str, throttle: float, starts: int) -> dict[str, float]:
     if not drive:
         raise SystemExit(
             f"{condition}, throttle {throttle}: the bucket never reached {CONTACT_DEPTH_M} m "
-            f"deep in {SECONDS:.0f} s (use a larger throttle)"
+            f"deep in {PUSH_S:.0f} s (use a larger throttle)"
         )
     return {
         "drive_p90": float(np.percentile(drive, 90)),
@@ -196,7 +196,7 @@ def main() -> None:
     print(f"   time of the lift [s]     {_quantiles(onsets['time_s'])}")
 
     print(
-        f"\n2. pushes: boom and bucket held, {args.starts} starts x {SECONDS:.0f} s; in contact "
+        f"\n2. pushes: boom and bucket held, {args.starts} starts x {PUSH_S:.0f} s; in contact "
         f"(depth > {CONTACT_DEPTH_M * 100:.0f} cm) [MPa]; reach = share of the first lifts at "
         "or below the peak"
     )

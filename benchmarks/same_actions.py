@@ -54,9 +54,7 @@ from collections.abc import Callable
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import gymnasium as gym  # noqa: E402
-import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
-import pilerl_pile_loader.env as env_module  # noqa: E402
 from pilerl_pile_loader import open_loop  # noqa: E402
 from pilerl_pile_loader.operator import OperatorStyle, make_expert  # noqa: E402
 
@@ -78,7 +76,7 @@ PHASES = ("approach", "fill", "finish")
 
 
 class _PhysicsLog:
-    """``mujoco`` for the env module, with ``mj_step`` run one physics step at a time and
+    """Wraps a soil's ``advance`` (the env's physics steps): one physics step at a time,
     the drive pressure and forward speed logged after each."""
 
     def __init__(self) -> None:
@@ -86,14 +84,14 @@ class _PhysicsLog:
         self.p_d: list[float] = []
         self.speed: list[float] = []
 
-    def __getattr__(self, name: str):
-        return getattr(mujoco, name)
+    def wrap(self, advance: Callable[..., None]) -> Callable[..., None]:
+        def logged(model, data, nstep: int) -> None:
+            for _ in range(nstep):
+                advance(model, data, 1)
+                self.p_d.append(self.machine.drive_pressure_mpa())
+                self.speed.append(self.machine.forward_speed())
 
-    def mj_step(self, model, data, nstep: int = 1) -> None:
-        for _ in range(nstep):
-            mujoco.mj_step(model, data)
-            self.p_d.append(self.machine.drive_pressure_mpa())
-            self.speed.append(self.machine.forward_speed())
+        return logged
 
 
 LOG = _PhysicsLog()
@@ -109,7 +107,7 @@ def episode(
     LOG.machine, LOG.p_d, LOG.speed = sim.machine, [], []
     rows: dict[str, list] = {k: [] for k in ("action", "p_d", "depth", "speed", "phase")}
     step, info, start, wall = 0, {}, time.process_time(), time.perf_counter()
-    env_module.mujoco = LOG
+    sim.soil.advance = LOG.wrap(sim.soil.advance)  # the bound method, logged
     try:
         while True:
             action = np.asarray(policy(step, obs), np.float32)
@@ -123,7 +121,7 @@ def episode(
             if terminated or truncated or (max_s is not None and step * sim.dt >= max_s - 1e-9):
                 break
     finally:
-        env_module.mujoco = mujoco
+        del sim.soil.advance  # the class's own again
     soil = sim.soil
     volume = soil.load_bulk_volume_m3() if hasattr(soil, "load_bulk_volume_m3") else np.nan
     trace = {k: np.asarray(v) for k, v in rows.items()}

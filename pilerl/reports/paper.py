@@ -37,7 +37,13 @@ from . import paper_numbers
 from .comparisons import compare, seed_spread_text, threshold
 from .document import Report
 from .paper_numbers import Claim, Key
-from .results import Cell, closed_loop_cells, offline_validation_curves, unfinished_ensemble_jobs
+from .results import (
+    Cell,
+    LossCurves,
+    closed_loop_cells,
+    offline_validation_curves,
+    unfinished_ensemble_jobs,
+)
 from .stats import welch_less_p
 
 SENSOR_LABELS = {"s": "θ1, θ2, p_d", "s_pt": "+ p_t", "s_pt_sprime": "+ p_t, s′"}
@@ -49,6 +55,7 @@ CONTROLLER_LABELS = {
     "dannet": "DANNet",
 }
 DATASET_LABELS = {"d_i": "D_I", "d_ii": "D_II"}
+LOSS_CLAIM_ALPHA = 0.05  # an Exp. 4 loss claim holds for a pair when Welch's p is below this
 
 
 def controller_text(controller: str) -> str:
@@ -431,10 +438,7 @@ def add_offline_validation(report: Report, sweep_dir: Path, out_dir: Path) -> No
         report.table(["claim", "in simulation", "evidence"], claims)
 
 
-LOSS_CLAIM_ALPHA = 0.05  # a loss claim holds for a pair when Welch's p is below this
-
-
-def final_validation_loss(curves) -> tuple[float, float, int]:
+def final_validation_loss(curves: LossCurves) -> tuple[float, float, int]:
     """An ensemble's last-epoch validation loss: mean, sample std over its seeds (the
     curves record numpy's population std, ddof = 0) and the number of seeds."""
     n = int(curves.seeds)
@@ -443,16 +447,18 @@ def final_validation_loss(curves) -> tuple[float, float, int]:
     return float(curves.validation_mean[-1]), sample_std, n
 
 
-def lower_loss(a: tuple[float, float, int], b: tuple[float, float, int]) -> tuple[bool, str]:
+def lower_loss(a: tuple[float, float, int], b: tuple[float, float, int]) -> tuple[bool | None, str]:
     """Whether loss ``a`` is below ``b`` (``final_validation_loss``'s tuples) by Welch's
-    one-sided test over the seeds, and the p-value as text."""
+    one-sided test over the seeds (``None``: a group of one seed, not tested), and the
+    p-value as text."""
     if a[2] < 2 or b[2] < 2:
-        return False, "one seed: not tested"
+        return None, "one seed: not tested"
     p = welch_less_p(a[0], a[1], a[2], b[0], b[1], b[2])
     return p < LOSS_CLAIM_ALPHA, f"p = {p:.2g}"
 
 
 def loss_text(loss: tuple[float, float, int]) -> str:
+    """A final validation loss and its number of seeds, for a claim's evidence."""
     return f"{loss[0]:.4f} ({loss[2]} seeds)"
 
 

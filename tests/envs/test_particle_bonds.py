@@ -85,6 +85,28 @@ def test_the_bonds_are_mujocos_body_adhesion():
     np.testing.assert_allclose(ours, mujoco_force, rtol=0, atol=1e-9 * BOND_N)
 
 
+def test_a_bonded_cluster_moves_as_with_mujocos_adhesion_sleeping_included():
+    """2,000 physics steps with sleeping on: the cluster settles, falls asleep, and every
+    grain is where MuJoCo's adhesion actuators put it."""
+    reference, grains = cluster(reference_adhesion=True)
+    ours, _ = cluster(reference_adhesion=False)
+    sleep = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    reference.opt.enableflags |= sleep
+    ours.opt.enableflags |= sleep
+    bonds = GrainBonds(ours, grains, BOND_N)
+    data_reference, data_ours = mujoco.MjData(reference), mujoco.MjData(ours)
+
+    mujoco.mj_step(reference, data_reference, nstep=2000)
+    bonds.step(ours, data_ours, 2000)
+
+    moved = np.linalg.norm(data_ours.xpos[grains] - CENTRES_M, axis=1)
+    assert moved.max() > 1e-3  # it did settle
+    np.testing.assert_allclose(data_ours.qpos, data_reference.qpos, rtol=0, atol=1e-9)
+    trees = ours.body_treeid[grains]
+    np.testing.assert_array_equal(data_ours.tree_awake[trees], data_reference.tree_awake[trees])
+    assert not data_ours.tree_awake[trees].all()  # the sleeping path was taken
+
+
 def test_stepping_with_the_bonds_holds_a_pair_together():
     """Two grains pulled apart by the same force: bonded they part less than loose."""
     model, grains = cluster(reference_adhesion=False)

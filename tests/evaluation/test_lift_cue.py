@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 import torch
@@ -150,3 +151,59 @@ def test_a_missing_dataset_is_named(tmp_path):
     )
     assert out.returncode == 2
     assert "nowhere" in out.stderr
+
+
+STATS = {
+    "n_samples": 100,
+    "sensors": {
+        "boom_angle": {"mean": -0.3, "std": 0.2},
+        "bucket_angle": {"mean": 0.4, "std": 0.3},
+        "drive_pressure": {"mean": 12.0, "std": 5.0},
+        "telescope_pressure": {"mean": 1.5, "std": 0.7},
+        "boom_pressure": {"mean": 8.0, "std": 4.0},
+    },
+    "action": {"mean": [0.0] * 3, "std": [0.5] * 3, "min": [-1.0] * 3, "max": [1.0] * 3},
+}
+
+
+def test_the_boom_response_grid_is_the_actors_own_command(lift_cue, tmp_path):
+    from tensordict import TensorDict
+
+    from pilerl.policies import make_actor, save_actor
+
+    with_pt = ["boom_angle", "bucket_angle", "drive_pressure", "telescope_pressure"]
+    posture = (-0.45, 0.45)
+    torch.manual_seed(0)
+    for sensors in (with_pt, with_pt[:3]):
+        actor = make_actor("nnetv2", sensors=sensors, stats=STATS)
+        path = save_actor(tmp_path / f"{len(sensors)}.pt", actor)
+        grid = lift_cue.boom_response(path, posture)
+
+        assert grid.shape == (len(lift_cue.GRID_DRIVE_MPA), len(lift_cue.GRID_TELESCOPE_MPA))
+        row, column = 3, 5  # one cell, by hand
+        reading = {
+            "boom_angle": posture[0],
+            "bucket_angle": posture[1],
+            "drive_pressure": lift_cue.GRID_DRIVE_MPA[row],
+            "telescope_pressure": lift_cue.GRID_TELESCOPE_MPA[column],
+        }
+        td = TensorDict(
+            {k: torch.tensor([[reading[k]]], dtype=torch.float32) for k in sensors},
+            batch_size=[1],
+        )
+        with torch.no_grad():
+            expected = actor.eval()(td)["action"][0, 0].item()
+        assert grid[row, column] == pytest.approx(expected, abs=1e-6)
+        if len(sensors) == 3:  # without p_t every column is the same
+            np.testing.assert_allclose(grid, np.repeat(grid[:, :1], grid.shape[1], 1), atol=1e-6)
+        else:
+            assert np.ptp(grid, axis=1).max() > 1e-3
+
+
+def test_an_actor_reading_another_sensor_is_refused_naming_it(lift_cue, tmp_path):
+    from pilerl.policies import make_actor, save_actor
+
+    sensors = ["boom_angle", "bucket_angle", "drive_pressure", "boom_pressure"]
+    path = save_actor(tmp_path / "pl.pt", make_actor("nnetv2", sensors=sensors, stats=STATS))
+    with pytest.raises(SystemExit, match="boom_pressure"):
+        lift_cue.boom_response(path, (-0.45, 0.45))

@@ -348,6 +348,21 @@ def test_report_of_offline_validation_checks_the_papers_two_claims(tmp_path):
     assert (tmp_path / "report" / "exp4_validation_loss.png").stat().st_size > 5000
 
 
+def test_a_loss_claim_on_one_seed_is_not_tested(tmp_path):
+    sweep = tmp_path / "exp4"
+    for n, (data, final) in enumerate((("d_ii", 0.06), ("d_i", 0.05))):
+        fake_job(sweep, n, "nnetv2", "s_pt", data, {})
+        (sweep / str(n) / "ensemble_curves.csv").write_text(
+            "epoch,train_mean,train_std,validation_mean,validation_std\n"
+            f"1,0.2,0.01,0.1,0.0\n2,0.1,0.01,{final},0.0\n"
+        )
+        (sweep / str(n) / "metrics.json").write_text(json.dumps({"seeds": 1}))
+    markdown, _ = build_report(out_dir=tmp_path / "report", exp4=sweep)
+    text = markdown.read_text()
+    assert "| All data D_I gives a lower validation loss than D_II. | not run |" in text
+    assert "one seed: not tested" in text
+
+
 def test_a_loss_lead_inside_the_seeds_spread_does_not_hold(tmp_path):
     """D_I's mean is lower, but by a tenth of the spread over 4 seeds: not shown."""
     sweep = tmp_path / "exp4"

@@ -37,8 +37,15 @@ def add_bond_motors(spec: mujoco.MjSpec, body: mujoco.MjsBody, name: str) -> Non
     """Name ``body``'s three slide joints ``{name}_x|y|z`` and put a motor on each
     (``{name}_bond_x|y|z``: gain 1, the control is the force [N], unlimited)."""
     joints = list(body.joints)
-    if len(joints) != len(AXES):
-        raise ValueError(f"add_bond_motors: {name} has {len(joints)} joints, not 3 slides")
+    slides = [
+        j.type == mujoco.mjtJoint.mjJNT_SLIDE and np.allclose(j.axis, np.eye(3)[i])
+        for i, j in enumerate(joints[: len(AXES)])
+    ]
+    if len(joints) != len(AXES) or not all(slides):
+        raise ValueError(
+            f"add_bond_motors: {name} must move on three slides along x, y and z, in that "
+            f"order (the bonds are forces along the world axes); it has {len(joints)} joints"
+        )
     for axis, joint in zip(AXES, joints, strict=True):
         joint.name = f"{name}_{axis}"
         motor = spec.add_actuator(name=f"{name}_bond_{axis}", target=joint.name)
@@ -54,6 +61,11 @@ class GrainBonds:
     def __init__(self, model: mujoco.MjModel, grain_bodies: np.ndarray, bond_n: float) -> None:
         if not bond_n > 0.0:
             raise ValueError(f"GrainBonds: the bond force must be > 0 N, got {bond_n!r}")
+        if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
+            raise ValueError(
+                "GrainBonds: the model integrates with RK4, which mj_step1 / mj_step2 cannot "
+                "(they fall back to Euler); use Euler, implicit or implicitfast"
+            )
         self.bond_n = float(bond_n)
         grain_bodies = np.asarray(grain_bodies, dtype=int)
         self._bodies = grain_bodies
@@ -99,3 +111,13 @@ class GrainBonds:
             mujoco.mj_step1(model, data)
             data.ctrl[motors] = self.forces(data)
             mujoco.mj_step2(model, data)
+
+
+def step_physics(
+    model: mujoco.MjModel, data: mujoco.MjData, nstep: int, bonds: GrainBonds | None
+) -> None:
+    """``nstep`` physics steps: ``mj_step``, or with ``bonds`` set from each step's contacts."""
+    if bonds is None:
+        mujoco.mj_step(model, data, nstep=nstep)
+    else:
+        bonds.step(model, data, nstep)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .bonds import GrainBonds
+from .bonds import GrainBonds, step_physics
 from .particles import (
     ARENA_BYTES_PER_GRAIN,
     CONE,
@@ -194,11 +194,7 @@ def run_cut(
     bonds = GrainBonds(model, bodies, bond) if bond > 0 else None
 
     def advance(seconds: float) -> None:
-        nstep = round(seconds / model.opt.timestep)
-        if bonds is None:
-            mujoco.mj_step(model, data, nstep=nstep)
-        else:
-            bonds.step(model, data, nstep)
+        step_physics(model, data, round(seconds / model.opt.timestep), bonds)
 
     start = time.process_time()
     advance(SETTLE_S)

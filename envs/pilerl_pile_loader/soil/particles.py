@@ -206,7 +206,7 @@ import mujoco
 import numpy as np
 
 from .base import SoilModel
-from .bonds import GrainBonds, add_bond_motors
+from .bonds import GrainBonds, add_bond_motors, step_physics
 
 if TYPE_CHECKING:
     from ..machine import Machine
@@ -431,6 +431,7 @@ class ParticleSoil(SoilModel):
                 f"ParticleSoil.sleep_in_contact: must be true or false, got {sleep_in_contact!r}"
             )
         self.sleep_in_contact = sleep_in_contact
+        self.bonds: GrainBonds | None = None  # a cohesive pile's, from ``bind``
         self.active_depth_m = ACTIVE_DEPTH_M * self.zone_scale
         self.fill_measure = fill_measure
         self.contact_timeconst_s = float(contact_timeconst_s)
@@ -848,10 +849,7 @@ class ParticleSoil(SoilModel):
     # ------------------------------------------------------------------ update
     def advance(self, model: mujoco.MjModel, data: mujoco.MjData, nstep: int) -> None:
         """``nstep`` physics steps; a cohesive pile's bonds set from each step's contacts."""
-        if self.bonds is None:
-            mujoco.mj_step(model, data, nstep=nstep)
-        else:
-            self.bonds.step(model, data, nstep)
+        step_physics(model, data, nstep, self.bonds)
 
     def update(self, dt: float) -> None:
         """Recount the particles and set whether they may fall asleep; the physics of the last
