@@ -3,7 +3,7 @@
 The measurement behind Exp. 2's verdict "p_t does not restore RF in winter"
 (docs/results/paper/README.md). A controller cloned from summer demonstrations lifts where
 the demonstrations lift; if no winter push ever produces those readings, no input set can
-make it lift there, p_t included. Three parts:
+make it lift there, p_t included. Four parts:
 
 1. **Onsets**, from a recorded summer dataset (``--demos``, e.g. the paper campaign's
    ``data/datasets/d_ii_summer``): each episode's first lift (the first sample after
@@ -17,7 +17,12 @@ make it lift there, p_t included. Three parts:
    peak in the first second of contact (the impact, which the machine's momentum drives,
    not its grip). ``reach p_d`` / ``reach p_t``: the share of summer onsets whose reading is
    at or below that condition's peak in contact (0: no onset reading is ever reached).
-3. **Controllers** (``--checkpoint``, repeatable): the boom command at the approach posture
+3. **What the demonstrations do at a winter push's drive pressure** (``--band``, default
+   10-14 MPa, winter_c's capped push): their samples with p_d in the band, split into
+   pushing (boom command <= ``LIFT_COMMAND``, throttle > ``PUSHING_THROTTLE``) and lifting
+   (boom command > ``LIFT_COMMAND``), with p_t's p10 / p50 / p90 for each: whether p_t
+   tells a controller which of the two an ice push looks like.
+4. **Controllers** (``--checkpoint``, repeatable): the boom command at the approach posture
    (median boom and bucket angle over the second before each onset) on a grid of drive and
    telescope pressures: what a cloned controller does with each reading a winter push gives.
 
@@ -46,6 +51,8 @@ SETTLE_S = 0.5  # the first lift is looked for after this [s] (the valves settle
 LIFT_COMMAND = 0.1  # a boom command above this is a lift
 POSTURE_WINDOW_S = 1.0  # the approach posture: the median angles over this before the onset [s]
 PUSH_S = 10.0  # each push [s]
+PUSHING_THROTTLE = 0.1  # a sample that does not lift, with the throttle above this, pushes
+BAND_MPA = (10.0, 14.0)  # part 3's default drive-pressure band: winter_c's capped push
 CONTACT_DEPTH_M = 0.05  # in contact: the cutting edge this deep (benchmarks/sensor_separability.py)
 IMPACT_WINDOW_S = 1.0  # the impact: p_t's peak within this of first contact [s]
 GRID_DRIVE_MPA = (4.0, 8.0, 10.0, 12.0, 14.0, 17.0, 20.0, 25.0)
@@ -81,6 +88,19 @@ def lift_onsets(frame: pd.DataFrame) -> pd.DataFrame:
             }
         )
     return pd.DataFrame(rows)
+
+
+def band_split(frame: pd.DataFrame, band_mpa: tuple[float, float]) -> dict[str, pd.Series]:
+    """The telescope pressures [MPa] of ``frame``'s samples with the drive pressure inside
+    ``band_mpa`` (inclusive), split into ``pushing`` and ``lifting`` (module docstring)."""
+    low, high = band_mpa
+    inside = frame[(frame["drive_pressure"] >= low) & (frame["drive_pressure"] <= high)]
+    lifting = inside["u_boom"] > LIFT_COMMAND
+    pushing = ~lifting & (inside["u_throttle"] > PUSHING_THROTTLE)
+    return {
+        "pushing": inside.loc[pushing, "telescope_pressure"],
+        "lifting": inside.loc[lifting, "telescope_pressure"],
+    }
 
 
 def push(condition: str, throttle: float, starts: int) -> dict[str, float]:
@@ -168,6 +188,14 @@ def main() -> None:
     parser.add_argument("--conditions", nargs="+", default=list(CONDITIONS))
     parser.add_argument("--throttles", nargs="+", type=float, default=[0.2, 0.6])
     parser.add_argument("--starts", type=int, default=3, help="seeded starts per push")
+    parser.add_argument(
+        "--band",
+        type=float,
+        nargs=2,
+        default=list(BAND_MPA),
+        metavar=("LOW", "HIGH"),
+        help="part 3's drive-pressure band [MPa]",
+    )
     parser.add_argument("--checkpoint", type=Path, action="append", default=[])
     args = parser.parse_args()
     if args.starts < 1:
@@ -175,6 +203,8 @@ def main() -> None:
     bad = [t for t in args.throttles if not 0.0 < t <= 1.0]
     if bad:
         parser.error(f"--throttles: each must be in (0, 1], got {bad}")
+    if not 0.0 <= args.band[0] < args.band[1]:
+        parser.error(f"--band: needs 0 <= LOW < HIGH, got {args.band}")
     unknown = sorted(set(args.conditions) - set(CONDITIONS))
     if unknown:
         parser.error(f"--conditions: unknown {unknown}; known: {list(CONDITIONS)}")
@@ -185,7 +215,8 @@ def main() -> None:
     from pilerl.data.export import episodes_to_frame
     from pilerl.data.store import EpisodeStore
 
-    onsets = lift_onsets(episodes_to_frame(EpisodeStore.open(args.demos)))
+    frame = episodes_to_frame(EpisodeStore.open(args.demos))
+    onsets = lift_onsets(frame)
     if onsets.empty:
         raise SystemExit(f"{args.demos}: no episode lifts (boom command > {LIFT_COMMAND})")
     print(f"1. first lifts of {args.demos}: {len(onsets)} episodes, p10 / p50 / p90 [MPa]")
@@ -215,11 +246,17 @@ def main() -> None:
                 flush=True,
             )
 
+    low, high = args.band
+    print(f"\n3. the demonstrations' samples with p_d {low:g}-{high:g} MPa: p_t p10 / p50 / p90")
+    for kind, telescope in band_split(frame, (low, high)).items():
+        spread = _quantiles(telescope) if len(telescope) else "   (none)"
+        print(f"   {kind:<8} {len(telescope):>7} samples  {spread}")
+
     posture = (float(onsets["boom_angle_rad"].median()), float(onsets["bucket_angle_rad"].median()))
     for checkpoint in args.checkpoint:
         grid = boom_response(checkpoint, posture)
         print(
-            f"\n3. {checkpoint}: boom command at the approach posture (boom {posture[0]:.3f}, "
+            f"\n4. {checkpoint}: boom command at the approach posture (boom {posture[0]:.3f}, "
             f"bucket {posture[1]:.3f} rad); rows p_d, columns p_t [MPa]"
         )
         print("   " + " " * 8 + "".join(f"{t:>6.1f}" for t in GRID_TELESCOPE_MPA))

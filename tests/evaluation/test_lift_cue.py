@@ -207,3 +207,17 @@ def test_an_actor_reading_another_sensor_is_refused_naming_it(lift_cue, tmp_path
     path = save_actor(tmp_path / "pl.pt", make_actor("nnetv2", sensors=sensors, stats=STATS))
     with pytest.raises(SystemExit, match="boom_pressure"):
         lift_cue.boom_response(path, (-0.45, 0.45))
+
+
+def test_the_band_split_separates_pushing_from_lifting_samples(lift_cue):
+    frame = pd.DataFrame(
+        {
+            "drive_pressure": [12.0, 12.0, 13.0, 12.5, 9.0, 15.0, 11.0],
+            "telescope_pressure": [1.8, 2.0, 0.7, 0.9, 1.0, 3.0, 5.0],
+            "u_boom": [0.0, 0.05, 0.4, 0.3, 0.0, 0.4, 0.0],
+            "u_throttle": [0.6, 0.6, 0.2, 0.0, 0.6, 0.0, 0.0],  # the last: standing, not pushing
+        }
+    )
+    split = lift_cue.band_split(frame, (10.0, 14.0))
+    assert split["pushing"].tolist() == [1.8, 2.0]
+    assert split["lifting"].tolist() == [0.7, 0.9]
