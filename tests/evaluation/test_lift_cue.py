@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import torch
+from test_paper_figures import STATS as FIGURE_STATS
 
 from pilerl.data import EpisodeMeta, EpisodeStore, make_episode
 
@@ -153,16 +154,10 @@ def test_a_missing_dataset_is_named(tmp_path):
     assert "nowhere" in out.stderr
 
 
+# the paper figures' controller statistics, and the boom pressure for an actor that reads it
 STATS = {
-    "n_samples": 100,
-    "sensors": {
-        "boom_angle": {"mean": -0.3, "std": 0.2},
-        "bucket_angle": {"mean": 0.4, "std": 0.3},
-        "drive_pressure": {"mean": 12.0, "std": 5.0},
-        "telescope_pressure": {"mean": 1.5, "std": 0.7},
-        "boom_pressure": {"mean": 8.0, "std": 4.0},
-    },
-    "action": {"mean": [0.0] * 3, "std": [0.5] * 3, "min": [-1.0] * 3, "max": [1.0] * 3},
+    **FIGURE_STATS,
+    "sensors": {**FIGURE_STATS["sensors"], "boom_pressure": {"mean": 8.0, "std": 4.0}},
 }
 
 

@@ -348,32 +348,35 @@ def test_report_of_offline_validation_checks_the_papers_two_claims(tmp_path):
     assert (tmp_path / "report" / "exp4_validation_loss.png").stat().st_size > 5000
 
 
-def test_a_loss_claim_on_one_seed_is_not_tested(tmp_path):
-    sweep = tmp_path / "exp4"
-    for n, (data, final) in enumerate((("d_ii", 0.06), ("d_i", 0.05))):
-        fake_job(sweep, n, "nnetv2", "s_pt", data, {})
-        (sweep / str(n) / "ensemble_curves.csv").write_text(
-            "epoch,train_mean,train_std,validation_mean,validation_std\n"
-            f"1,0.2,0.01,0.1,0.0\n2,0.1,0.01,{final},0.0\n"
-        )
-        (sweep / str(n) / "metrics.json").write_text(json.dumps({"seeds": 1}))
-    markdown, _ = build_report(out_dir=tmp_path / "report", exp4=sweep)
-    text = markdown.read_text()
-    assert "| All data D_I gives a lower validation loss than D_II. | not run |" in text
-    assert "one seed: not tested" in text
+def fake_ensemble_job(
+    sweep: Path, n: int, data: str, final: float, *, spread: float, seeds: int
+) -> None:
+    """An NNetV2 + p_t ensemble job of Exp. 4 on ``data`` whose last epoch's validation
+    loss is ``final`` ± ``spread`` over ``seeds`` seeds."""
+    fake_job(sweep, n, "nnetv2", "s_pt", data, {})
+    (sweep / str(n) / "ensemble_curves.csv").write_text(
+        "epoch,train_mean,train_std,validation_mean,validation_std\n"
+        f"1,0.2,0.01,0.1,{spread}\n2,0.1,0.01,{final},{spread}\n"
+    )
+    (sweep / str(n) / "metrics.json").write_text(json.dumps({"seeds": seeds}))
 
 
-def test_a_loss_lead_inside_the_seeds_spread_does_not_hold(tmp_path):
-    """D_I's mean is lower, but by a tenth of the spread over 4 seeds: not shown."""
+@pytest.mark.parametrize(
+    ("finals", "spread", "seeds", "verdict", "evidence"),
+    [
+        # one seed: nothing to test
+        ((0.06, 0.05), 0.0, 1, "not run", "one seed: not tested"),
+        # D_I's mean is lower, but by a tenth of the spread over 4 seeds: not shown
+        ((0.0600, 0.0598), 0.002, 4, "does not hold", "(4 seeds), p = 0.45"),
+    ],
+)
+def test_a_loss_claim_needs_seeds_and_a_lead_beyond_their_spread(
+    tmp_path, finals, spread, seeds, verdict, evidence
+):
     sweep = tmp_path / "exp4"
-    for n, (data, final) in enumerate((("d_ii", 0.0600), ("d_i", 0.0598))):
-        fake_job(sweep, n, "nnetv2", "s_pt", data, {})
-        (sweep / str(n) / "ensemble_curves.csv").write_text(
-            "epoch,train_mean,train_std,validation_mean,validation_std\n"
-            f"1,0.2,0.01,0.1,0.01\n2,0.1,0.01,{final},0.002\n"
-        )
-        (sweep / str(n) / "metrics.json").write_text(json.dumps({"seeds": 4}))
+    for n, (data, final) in enumerate(zip(("d_ii", "d_i"), finals, strict=True)):
+        fake_ensemble_job(sweep, n, data, final, spread=spread, seeds=seeds)
     markdown, _ = build_report(out_dir=tmp_path / "report", exp4=sweep)
     text = markdown.read_text()
-    assert "| All data D_I gives a lower validation loss than D_II. | does not hold |" in text
-    assert "D_I 0.0598 (4 seeds) vs D_II 0.0600 (4 seeds), p = 0.45" in text
+    assert f"| All data D_I gives a lower validation loss than D_II. | {verdict} |" in text
+    assert evidence in text
