@@ -70,10 +70,12 @@ class GrainBonds:
         grain_bodies = np.asarray(grain_bodies, dtype=int)
         self._bodies = grain_bodies
         self.n_grains = len(grain_bodies)
-        grain_of_body = np.full(model.nbody, -1)
+        # a contact side that is not a bonded grain counts as the "sink", index n_grains:
+        # only a grain's own geom bonds (its steel proxy is a child body: never), and a
+        # flex's geom id -1 reads the appended last entry
+        grain_of_body = np.full(model.nbody, self.n_grains)
         grain_of_body[grain_bodies] = np.arange(self.n_grains)
-        # only the grain's own geom bonds (its steel proxy is a child body: never)
-        self._grain_of_geom = np.append(grain_of_body[model.geom_bodyid], -1)  # [-1]: flex
+        self._grain_of_geom = np.append(grain_of_body[model.geom_bodyid], self.n_grains)
         names = [model.body(int(b)).name for b in grain_bodies]
         self._motors = np.array(
             [[model.actuator(f"{name}_bond_{axis}").id for axis in AXES] for name in names]
@@ -81,13 +83,12 @@ class GrainBonds:
 
     def forces(self, data: mujoco.MjData) -> np.ndarray:
         """Each grain's bond force [N], world x, y, z, from ``data``'s contacts: (grains, 3)."""
-        n, sink = data.ncon, self.n_grains  # sink: a contact side that is not a grain
+        n, sink = data.ncon, self.n_grains
         if n == 0:
             return np.zeros((self.n_grains, 3))
         contact = data.contact
-        counted = contact.exclude[:n] <= 1  # 0: active, 1: in the gap (MuJoCo counts both)
-        grain = self._grain_of_geom[contact.geom[:n]]  # (n, 2); a flex (-1): the last entry
-        grain[(grain < 0) | ~counted[:, None]] = sink
+        grain = self._grain_of_geom[contact.geom[:n]]  # (n, 2): grain index or the sink
+        grain[contact.exclude[:n] > 1] = sink  # MuJoCo counts 0 (active) and 1 (in the gap)
         contacts = np.bincount(grain.ravel(), minlength=sink + 1)[:sink]
         per_contact = np.zeros(sink + 1)
         per_contact[:sink] = self.bond_n / np.maximum(contacts, 1)

@@ -725,7 +725,7 @@ class ParticleSoil(SoilModel):
         self.zone_offset_y_m = 0.0
         self.initial_mass_kg = self.n_particles * self.particle_mass_kg
         self.bonds = (
-            GrainBonds(model, np.arange(self.n_particles) * stride + first, self.bond_force_n)
+            GrainBonds(model, np.arange(model.nbody)[self._bodies], self.bond_force_n)
             if self.bond_force_n > 0
             else None
         )
